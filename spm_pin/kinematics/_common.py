@@ -1,0 +1,121 @@
+"""Shared helpers of the analytic kinematics: input checks and leg geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..design import SPMDesign
+from ..errors import InputError
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+#: Largest |R^T R - I| accepted for a rotation matrix given by the user.
+ROTATION_TOL = 1e-6
+
+
+def check_design(design: SPMDesign | None) -> SPMDesign:
+    """Return ``design`` or the prototype; reject anything that is not an SPMDesign."""
+    if design is None:
+        return SPMDesign.prototype()
+    if not isinstance(design, SPMDesign):
+        raise InputError(
+            f"design must be an SPMDesign, got {type(design).__name__}",
+            argument="design",
+            value=design,
+        )
+    return design
+
+
+def as_theta(theta: npt.ArrayLike, name: str = "theta") -> FloatArray:
+    """Input angles as a float array of shape (..., 3), finite, or InputError."""
+    try:
+        array = np.asarray(theta, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"{name} must be numbers [rad] of shape (3,) or (..., 3), got {theta!r}",
+            argument=name,
+            value=theta,
+        ) from exc
+    if array.ndim == 0 or array.shape[-1] != 3:
+        raise InputError(
+            f"{name} must have shape (3,) or (..., 3) [rad], got shape {array.shape}",
+            argument=name,
+            value=theta,
+        )
+    if not np.all(np.isfinite(array)):
+        bad = np.argwhere(~np.isfinite(array))[0]
+        raise InputError(
+            f"{name} must be finite, got {array[tuple(bad)]} at index {tuple(int(i) for i in bad)}",
+            argument=name,
+            value=theta,
+        )
+    return array
+
+
+def as_rotation(rotation: npt.ArrayLike, name: str = "R") -> FloatArray:
+    """Rotation matrices of shape (..., 3, 3), orthonormal with det +1, or InputError."""
+    try:
+        array = np.asarray(rotation, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"{name} must be rotation matrices of shape (3, 3) or (..., 3, 3), got {rotation!r}",
+            argument=name,
+            value=rotation,
+        ) from exc
+    if array.ndim < 2 or array.shape[-2:] != (3, 3):
+        raise InputError(
+            f"{name} must have shape (3, 3) or (..., 3, 3), got shape {array.shape}",
+            argument=name,
+            value=rotation,
+        )
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{name} must be finite, got NaN or inf", argument=name, value=rotation)
+    error = np.abs(np.swapaxes(array, -1, -2) @ array - np.eye(3)).max(axis=(-2, -1))
+    det = np.linalg.det(array)
+    bad = (error > ROTATION_TOL) | (det < 0)
+    if np.any(bad):
+        index = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])
+        flat_error = np.atleast_1d(error)[index]
+        flat_det = np.atleast_1d(det)[index]
+        raise InputError(
+            f"{name} is not a rotation matrix (|R^T R - I| = {flat_error:.3g}, det = "
+            f"{flat_det:.6g}{', at batch index ' + str(index) if array.ndim > 2 else ''}); "
+            f"allowed: orthonormal within {ROTATION_TOL:g} with det +1",
+            argument=name,
+            value=rotation,
+        )
+    return array
+
+
+def rotate_about(axes: FloatArray, angles: FloatArray, vectors: FloatArray) -> FloatArray:
+    """Rodrigues: turn ``vectors`` about unit ``axes`` by ``angles`` (right-handed).
+
+    Shapes broadcast: axes (..., 3), angles (...), vectors (..., 3).
+    """
+    c = np.cos(angles)[..., None]
+    s = np.sin(angles)[..., None]
+    along = np.sum(axes * vectors, axis=-1, keepdims=True) * axes
+    return along + c * (vectors - along) + s * np.cross(axes, vectors)
+
+
+def proximal_axes(theta: FloatArray, design: SPMDesign) -> FloatArray:
+    """w_i(theta_i) = rotation of w_i0 about u_i by theta_i; rows, shape (..., 3, 3)."""
+    return rotate_about(design.u, theta, design.w0)
+
+
+def rotation_about(axis: FloatArray, angles: FloatArray) -> FloatArray:
+    """Rotation matrices (..., 3, 3) about one unit ``axis`` by ``angles`` (...)."""
+    c = np.cos(angles)[..., None, None]
+    s = np.sin(angles)[..., None, None]
+    k = np.array(
+        [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
+    )
+    outer = np.outer(axis, axis)
+    return c * np.eye(3) + s * k + (1.0 - c) * outer
+
+
+def mode_label(signs: npt.ArrayLike) -> str:
+    """'+-+' style label from three signs (b_ii > 0 is '+')."""
+    return "".join("+" if s > 0 else "-" for s in np.asarray(signs).ravel())
