@@ -1,15 +1,28 @@
 """Analytic kinematics of 3-RRR spherical parallel manipulators (numpy only)."""
 
 from .fk import FKAllResult, FKResult, forward_kinematics, forward_kinematics_all
-from .ik import IKAllResult, IKResult, inverse_kinematics, inverse_kinematics_all
+from .ik import (
+    WORKING_MODE_LABELS,
+    IKAllResult,
+    IKResult,
+    inverse_kinematics,
+    inverse_kinematics_all,
+)
+from .jacobian import JacobianResult, jacobian
+from .tracking import TrackResult, track
 
 __all__ = [
     "FKAllResult",
     "FKResult",
     "IKAllResult",
     "IKResult",
+    "JacobianResult",
+    "TrackResult",
+    "WORKING_MODE_LABELS",
     "forward_kinematics",
     "forward_kinematics_all",
     "inverse_kinematics",
     "inverse_kinematics_all",
+    "jacobian",
+    "track",
 ]

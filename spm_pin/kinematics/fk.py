@@ -62,6 +62,8 @@ MAX_ASSEMBLY_MODES = 8
 
 #: Closure residual below which a solution is accepted [unit-vector dot products].
 RESIDUAL_TOL = 1e-12
+#: |b_ii| and |det A| at or below this are on a singularity and carry no sign.
+_SIGN_TOL = 1e-9
 #: Offsets of the tan-half parameterisation (the second one is a fallback).
 _SIGMAS = (0.7234, -1.9113)
 #: Imaginary part (relative) below which a resultant root is treated as real.
@@ -246,7 +248,11 @@ def _signs(
 
 
 def _is_home(b: FloatArray, det_a: FloatArray, design: SPMDesign) -> BoolArray:
-    result: BoolArray = np.all(b > 0, axis=-1) & (np.sign(det_a) == np.sign(design.home_det_a))
+    """The sign rule: every b_ii > 0 (strictly: not on a type I singularity) and det A
+    of its sign at home."""
+    result: BoolArray = np.all(b > _SIGN_TOL, axis=-1) & (
+        np.sign(det_a) == np.sign(design.home_det_a)
+    ) & (np.abs(det_a) > _SIGN_TOL)
     return result
 
 
