@@ -408,7 +408,7 @@ class SPMDesign:
             return float(value)
 
         try:
-            dim_values = {
+            dim_values: dict[str, Any] = {
                 k: tuple(number(x, k) for x in v) if isinstance(v, list) else number(v, k)
                 for k, v in dims.items()
             }
@@ -430,15 +430,11 @@ class SPMDesign:
                     raise FileFormatError(
                         f"base_axes must be a list of 3 vectors, got {axes!r}", path=source
                     )
-                kwargs["base_axes"] = tuple(
-                    tuple(number(x, "base_axes") for x in a) for a in axes
-                )
+                kwargs["base_axes"] = tuple(tuple(number(x, "base_axes") for x in a) for a in axes)
             return cls(**kwargs)
         except DesignError as exc:
             where = f"{source}: " if source else ""
-            raise DesignError(
-                f"{where}{exc}", parameter=exc.parameter, value=exc.value
-            ) from exc
+            raise DesignError(f"{where}{exc}", parameter=exc.parameter, value=exc.value) from exc
 
     def to_toml(self) -> str:
         """The design as TOML text."""
@@ -467,7 +463,9 @@ class SPMDesign:
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as exc:
-            raise FileFormatError(f"cannot read design file: {exc.strerror}", path=str(path)) from exc
+            raise FileFormatError(
+                f"cannot read design file: {exc.strerror}", path=str(path)
+            ) from exc
         except UnicodeDecodeError as exc:
             raise FileFormatError("design file is not UTF-8 text", path=str(path)) from exc
         return cls.from_toml(text, source=str(path))
@@ -477,5 +475,6 @@ class SPMDesign:
         kind = "coaxial" if self.is_coaxial else "general"
         return (
             f"{self.name} ({kind}): alpha1 = {math.degrees(self.alpha1):.6g} deg, "
-            f"alpha2 = {math.degrees(self.alpha2):.6g} deg, beta = {math.degrees(self.beta):.6g} deg"
+            f"alpha2 = {math.degrees(self.alpha2):.6g} deg, "
+            f"beta = {math.degrees(self.beta):.6g} deg"
         )

@@ -12,13 +12,13 @@ from .jacobian import JacobianResult, jacobian
 from .tracking import TrackResult, track
 
 __all__ = [
+    "WORKING_MODE_LABELS",
     "FKAllResult",
     "FKResult",
     "IKAllResult",
     "IKResult",
     "JacobianResult",
     "TrackResult",
-    "WORKING_MODE_LABELS",
     "forward_kinematics",
     "forward_kinematics_all",
     "inverse_kinematics",

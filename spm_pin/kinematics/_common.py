@@ -97,7 +97,8 @@ def rotate_about(axes: FloatArray, angles: FloatArray, vectors: FloatArray) -> F
     c = np.cos(angles)[..., None]
     s = np.sin(angles)[..., None]
     along = np.sum(axes * vectors, axis=-1, keepdims=True) * axes
-    return along + c * (vectors - along) + s * np.cross(axes, vectors)
+    result: FloatArray = along + c * (vectors - along) + s * np.cross(axes, vectors)
+    return result
 
 
 def proximal_axes(theta: FloatArray, design: SPMDesign) -> FloatArray:
@@ -109,11 +110,10 @@ def rotation_about(axis: FloatArray, angles: FloatArray) -> FloatArray:
     """Rotation matrices (..., 3, 3) about one unit ``axis`` by ``angles`` (...)."""
     c = np.cos(angles)[..., None, None]
     s = np.sin(angles)[..., None, None]
-    k = np.array(
-        [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
-    )
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     outer = np.outer(axis, axis)
-    return c * np.eye(3) + s * k + (1.0 - c) * outer
+    result: FloatArray = c * np.eye(3) + s * k + (1.0 - c) * outer
+    return result
 
 
 def mode_label(signs: npt.ArrayLike) -> str:

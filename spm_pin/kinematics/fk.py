@@ -50,9 +50,9 @@ from ._common import (
 )
 
 __all__ = [
+    "MAX_ASSEMBLY_MODES",
     "FKAllResult",
     "FKResult",
-    "MAX_ASSEMBLY_MODES",
     "forward_kinematics",
     "forward_kinematics_all",
 ]
@@ -136,12 +136,14 @@ class FKAllResult:
     def home_index(self) -> npt.NDArray[np.int64]:
         """(...,) slot of the first home-rule mode, -1 where there is none."""
         index = np.argmax(self.home, axis=-1)
-        return np.where(np.any(self.home, axis=-1), index, -1)
+        result: npt.NDArray[np.int64] = np.where(np.any(self.home, axis=-1), index, -1)
+        return result
 
     @property
     def ambiguous(self) -> BoolArray:
         """(...,) more than one mode satisfies the home sign rule."""
-        return np.sum(self.home, axis=-1) > 1
+        result: BoolArray = np.sum(self.home, axis=-1) > 1
+        return result
 
 
 # --------------------------------------------------------------------------- set-up
@@ -250,9 +252,11 @@ def _signs(
 def _is_home(b: FloatArray, det_a: FloatArray, design: SPMDesign) -> BoolArray:
     """The sign rule: every b_ii > 0 (strictly: not on a type I singularity) and det A
     of its sign at home."""
-    result: BoolArray = np.all(b > _SIGN_TOL, axis=-1) & (
-        np.sign(det_a) == np.sign(design.home_det_a)
-    ) & (np.abs(det_a) > _SIGN_TOL)
+    result: BoolArray = (
+        np.all(b > _SIGN_TOL, axis=-1)
+        & (np.sign(det_a) == np.sign(design.home_det_a))
+        & (np.abs(det_a) > _SIGN_TOL)
+    )
     return result
 
 
@@ -325,7 +329,6 @@ def _candidates(
     legs: _Legs, design: SPMDesign, home_only: bool
 ) -> tuple[npt.NDArray[np.intp], FloatArray, FloatArray]:
     """Starting points (item, phi_1, phi_2) for the polish, from the resultant roots."""
-    n = legs.M.shape[0]
     phi1, real, degenerate = _resultant_roots(legs.M, _SIGMAS[0])
     if np.any(degenerate):
         idx = np.nonzero(degenerate)[0]
@@ -347,9 +350,19 @@ def _candidates(
     return item, both[item, root, which], phi2[item, root, which]
 
 
-def _solve_all_flat(
-    theta: FloatArray, design: SPMDesign, *, home_only: bool = False
-) -> dict[str, FloatArray]:
+@dataclasses.dataclass
+class _Modes:
+    """Solutions of a flat batch, padded to 8 slots per item."""
+
+    R: FloatArray  # (n, 8, 3, 3)
+    b: FloatArray  # (n, 8, 3)
+    det_a: FloatArray  # (n, 8)
+    residual: FloatArray  # (n, 8)
+    home: BoolArray  # (n, 8)
+    valid: BoolArray  # (n, 8)
+
+
+def _solve_all_flat(theta: FloatArray, design: SPMDesign, *, home_only: bool = False) -> _Modes:
     """All assembly modes (or the home-rule ones only) for a flat batch theta (n, 3)."""
     n = theta.shape[0]
     legs = _setup(theta, design)
@@ -377,13 +390,12 @@ def _solve_all_flat(
     item, p1, p2 = item[keep], p1[keep], p2[keep]
     R = _platform(legs.V1[item], legs.V2[item], p1, p2, design)
     w_item = legs.w[item]
-    v, b, det_a = _signs(R, w_item, design)
+    _, b, det_a = _signs(R, w_item, design)
     _, residual = _closure(R, w_item, design)
     home = _is_home(b, det_a, design)
     if home_only:
-        item, R, v, b, det_a, residual, home = (
-            x[home] for x in (item, R, v, b, det_a, residual, home)
-        )
+        item, R, b, det_a, residual = item[home], R[home], b[home], det_a[home], residual[home]
+        home = home[home]
     # Order per item: home-rule modes first, then by the label code.
     code = np.sum((b < 0) * np.array([1, 2, 4]), axis=-1) + 8 * (det_a > 0)
     order = np.lexsort((code, ~home, item))
@@ -393,29 +405,18 @@ def _solve_all_flat(
     sel = order[fits]
     item, slot_of = item[fits], slot_of[fits]
     out_R = np.full((n, MAX_ASSEMBLY_MODES, 3, 3), np.nan)
-    out_v = np.full((n, MAX_ASSEMBLY_MODES, 3, 3), np.nan)
     out_b = np.full((n, MAX_ASSEMBLY_MODES, 3), np.nan)
     out_det = np.full((n, MAX_ASSEMBLY_MODES), np.nan)
     out_res = np.full((n, MAX_ASSEMBLY_MODES), np.nan)
     out_home = np.zeros((n, MAX_ASSEMBLY_MODES), dtype=bool)
     out_valid = np.zeros((n, MAX_ASSEMBLY_MODES), dtype=bool)
     out_R[item, slot_of] = R[sel]
-    out_v[item, slot_of] = v[sel]
     out_b[item, slot_of] = b[sel]
     out_det[item, slot_of] = det_a[sel]
     out_res[item, slot_of] = residual[sel]
     out_home[item, slot_of] = home[sel]
     out_valid[item, slot_of] = True
-    return {
-        "R": out_R,
-        "v": out_v,
-        "w": legs.w,
-        "b": out_b,
-        "det_a": out_det,
-        "residual": out_res,
-        "home": out_home,
-        "valid": out_valid,
-    }
+    return _Modes(R=out_R, b=out_b, det_a=out_det, residual=out_res, home=out_home, valid=out_valid)
 
 
 def _angle_diff(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -449,9 +450,7 @@ def _torsion_split(theta: FloatArray, design: SPMDesign) -> tuple[FloatArray, Fl
     if not design.is_coaxial:
         return theta, None
     first = theta[..., :1]
-    rep = first + np.concatenate(
-        [np.zeros_like(first), _wrap(theta[..., 1:] - first)], axis=-1
-    )
+    rep = first + np.concatenate([np.zeros_like(first), _wrap(theta[..., 1:] - first)], axis=-1)
     common = np.mean(rep, axis=-1)
     return rep - common[..., None], common
 
@@ -475,15 +474,15 @@ def forward_kinematics_all(theta: npt.ArrayLike, design: SPMDesign | None = None
     shape = theta_in.shape[:-1]
     reduced, common = _torsion_split(theta_in, design)
     out = _solve_all_flat(reduced.reshape(-1, 3), design)
-    R = out["R"]
+    R = out.R
     if common is not None:
         turn = rotation_about(design.u[0], common.reshape(-1))
         R = turn[:, None] @ R
     w = proximal_axes(theta_in, design)
     v = np.einsum("...jk,ik->...ij", R, design.v0)
-    valid = out["valid"].reshape(*shape, MAX_ASSEMBLY_MODES)
-    b = out["b"].reshape(*shape, MAX_ASSEMBLY_MODES, 3)
-    det_a = out["det_a"].reshape(*shape, MAX_ASSEMBLY_MODES)
+    valid = out.valid.reshape(*shape, MAX_ASSEMBLY_MODES)
+    b = out.b.reshape(*shape, MAX_ASSEMBLY_MODES, 3)
+    det_a = out.det_a.reshape(*shape, MAX_ASSEMBLY_MODES)
     return FKAllResult(
         theta=theta_in,
         R=R.reshape(*shape, MAX_ASSEMBLY_MODES, 3, 3),
@@ -493,8 +492,8 @@ def forward_kinematics_all(theta: npt.ArrayLike, design: SPMDesign | None = None
         count=np.sum(valid, axis=-1),
         b=b,
         det_a=det_a,
-        home=out["home"].reshape(*shape, MAX_ASSEMBLY_MODES),
-        residual=out["residual"].reshape(*shape, MAX_ASSEMBLY_MODES),
+        home=out.home.reshape(*shape, MAX_ASSEMBLY_MODES),
+        residual=out.residual.reshape(*shape, MAX_ASSEMBLY_MODES),
     )
 
 
@@ -522,7 +521,6 @@ def forward_kinematics(
     theta_in = as_theta(theta)
     shape = theta_in.shape[:-1]
     flat = theta_in.reshape(-1, 3)
-    n = flat.shape[0]
     ref_flat: FloatArray | None = None
     if reference is not None:
         ref = as_rotation(reference, "reference")
@@ -543,14 +541,14 @@ def forward_kinematics(
     if not np.all(done):
         rest = np.nonzero(~done)[0]
         out = _solve_all_flat(reduced[rest], design, home_only=True)
-        home = out["home"]
+        home = out.home
         if local_ref is None:
             pick = np.argmax(home, axis=1)
         else:
-            dist = np.linalg.norm(out["R"] - local_ref[rest][:, None], axis=(-2, -1))
+            dist = np.linalg.norm(out.R - local_ref[rest][:, None], axis=(-2, -1))
             pick = np.argmin(np.where(home, dist, np.inf), axis=1)
         found = np.any(home, axis=1)
-        chosen = out["R"][np.arange(rest.shape[0]), pick]
+        chosen = out.R[np.arange(rest.shape[0]), pick]
         R[rest] = np.where(found[:, None, None], chosen, np.nan)
         done[rest] = found
     if turn is not None:
@@ -602,4 +600,5 @@ def _home_newton(
 def _cone_angle(V: FloatArray, v: FloatArray) -> FloatArray:
     """phi with V m(phi) closest to v."""
     coeff = np.einsum("ni,nij->nj", v, V)
-    return np.arctan2(coeff[:, 2], coeff[:, 1])
+    result: FloatArray = np.arctan2(coeff[:, 2], coeff[:, 1])
+    return result

@@ -27,9 +27,9 @@ from ..errors import InputError, UnreachableError
 from ._common import BoolArray, FloatArray, as_rotation, as_theta, check_design, mode_label
 
 __all__ = [
+    "WORKING_MODE_LABELS",
     "IKAllResult",
     "IKResult",
-    "WORKING_MODE_LABELS",
     "inverse_kinematics",
     "inverse_kinematics_all",
 ]
@@ -189,9 +189,7 @@ def inverse_kinematics_all(
     theta = _wrap(base[..., None, :] - signs * half[..., None, :])
     if theta_near is not None:
         theta = _near(theta, as_theta(theta_near, "theta_near")[..., None, :])
-    return IKAllResult(
-        theta=theta, reachable=np.all(leg_ok, axis=-1), labels=WORKING_MODE_LABELS
-    )
+    return IKAllResult(theta=theta, reachable=np.all(leg_ok, axis=-1), labels=WORKING_MODE_LABELS)
 
 
 def _mode_index(mode: int | str) -> int:
