@@ -134,6 +134,12 @@ def _unit(vector: Sequence[float], name: str) -> tuple[float, float, float]:
     return (float(unit[0]), float(unit[1]), float(unit[2]))
 
 
+def _round_deg(angle: float) -> float:
+    """An angle [rad] in degrees rounded to 12 decimals: what design files store, so
+    that radians(degrees(x)) round-trips exactly for designs given in degrees."""
+    return round(math.degrees(angle), 12)
+
+
 def _check_angle(value: float, name: str, low: float, high: float) -> float:
     if not isinstance(value, (int, float)) or not math.isfinite(value):
         raise DesignError(f"{name} must be a finite angle [rad], got {value!r}", parameter=name)
@@ -162,7 +168,7 @@ class SPMDesign:
     alpha1: float
     alpha2: float
     beta: float
-    eta: tuple[float, float, float] = (0.0, 2 * math.pi / 3, 4 * math.pi / 3)
+    eta: tuple[float, float, float] = (0.0, math.radians(120.0), math.radians(240.0))
     base_axes: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, -1.0),) * 3
     dimensions: LinkDimensions = dataclasses.field(default_factory=LinkDimensions)
     name: str = "custom"
@@ -251,8 +257,9 @@ class SPMDesign:
         g = acos(1/sqrt(3)), so they are mutually orthogonal; beta = g makes the
         platform axes orthogonal too.
         """
-        g = math.acos(1.0 / math.sqrt(3.0))
-        eta = (0.0, 2 * math.pi / 3, 4 * math.pi / 3)
+        # g = acos(1/sqrt(3)) = 54.7356... deg, kept to the 12 decimals a design file holds
+        g = math.radians(_round_deg(math.acos(1.0 / math.sqrt(3.0))))
+        eta = (0.0, math.radians(120.0), math.radians(240.0))
         axes = tuple(
             (math.sin(g) * math.cos(e), math.sin(g) * math.sin(e), -math.cos(g)) for e in eta
         )
@@ -351,10 +358,10 @@ class SPMDesign:
         return {
             "name": self.name,
             "kinematics": {
-                "alpha1_deg": math.degrees(self.alpha1),
-                "alpha2_deg": math.degrees(self.alpha2),
-                "beta_deg": math.degrees(self.beta),
-                "eta_deg": [math.degrees(e) for e in self.eta],
+                "alpha1_deg": _round_deg(self.alpha1),
+                "alpha2_deg": _round_deg(self.alpha2),
+                "beta_deg": _round_deg(self.beta),
+                "eta_deg": [_round_deg(e) for e in self.eta],
                 "base_axes": [list(u) for u in self.base_axes],
             },
             "dimensions": {

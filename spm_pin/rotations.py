@@ -38,10 +38,11 @@ def matrix_from_quaternion(quaternion: npt.ArrayLike) -> FloatArray:
     The quaternion is normalised; a (near) zero quaternion raises InputError.
     """
     q = _finite(quaternion, "quaternion", 4)
-    norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    if np.any(norm < 1e-9):
+    largest = np.max(np.abs(q), axis=-1, keepdims=True)
+    if np.any(largest < 1e-9):
         raise InputError("quaternion must be non-zero", argument="quaternion", value=quaternion)
-    w, x, y, z = np.moveaxis(q / norm, -1, 0)
+    q = q / largest  # no overflow in the norm of huge quaternions
+    w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
     return np.stack(
         [
             np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),

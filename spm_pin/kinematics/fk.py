@@ -55,6 +55,7 @@ __all__ = [
     "FKResult",
     "forward_kinematics",
     "forward_kinematics_all",
+    "satisfies_home_rule",
 ]
 
 #: A 3-RRR SPM has at most 8 real assembly modes.
@@ -249,9 +250,9 @@ def _signs(
     return v, b, det_a
 
 
-def _is_home(b: FloatArray, det_a: FloatArray, design: SPMDesign) -> BoolArray:
-    """The sign rule: every b_ii > 0 (strictly: not on a type I singularity) and det A
-    of its sign at home."""
+def satisfies_home_rule(b: FloatArray, det_a: FloatArray, design: SPMDesign) -> BoolArray:
+    """The home sign rule on b (..., 3) and det A (...): every b_ii > 0 (strictly, not on
+    a type I singularity) and det A non-zero with the sign it has at home."""
     result: BoolArray = (
         np.all(b > _SIGN_TOL, axis=-1)
         & (np.sign(det_a) == np.sign(design.home_det_a))
@@ -392,7 +393,7 @@ def _solve_all_flat(theta: FloatArray, design: SPMDesign, *, home_only: bool = F
     w_item = legs.w[item]
     _, b, det_a = _signs(R, w_item, design)
     _, residual = _closure(R, w_item, design)
-    home = _is_home(b, det_a, design)
+    home = satisfies_home_rule(b, det_a, design)
     if home_only:
         item, R, b, det_a, residual = item[home], R[home], b[home], det_a[home], residual[home]
         home = home[home]
@@ -593,7 +594,7 @@ def _home_newton(
         phi1, phi2, res = _newton(legs.M, phi1, phi2, steps)
     R = _platform(legs.V1, legs.V2, phi1, phi2, design)
     _, b, det_a = _signs(R, legs.w, design)
-    done = (res <= RESIDUAL_TOL) & _is_home(b, det_a, design)
+    done = (res <= RESIDUAL_TOL) & satisfies_home_rule(b, det_a, design)
     return R, done
 
 

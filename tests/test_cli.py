@@ -1,0 +1,423 @@
+"""The ``spm`` command: values against the library, round trips, and one-line errors."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import spm_pin as spm
+from spm_pin.cli import DEMO_SECTIONS, FK_SOLVERS, DemoContext, FKSolution, main
+from spm_pin.rotations import (
+    matrix_from_quaternion,
+    matrix_from_rpy,
+    quaternion_from_matrix,
+    rpy_from_matrix,
+)
+
+#: Tolerances, by what they compare.
+TOL = {
+    "json": 1e-12,  # a value printed as JSON against the library's own value
+    "round_trip_deg": 1e-9,  # fk then ik gives back the input [deg]
+    "text": 1e-6,  # a value printed as text (6 decimals)
+    "residual": 1e-12,  # closure residual of a solution
+    "track": 1e-9,  # the tracked motion against the home mode solved on its own
+}
+
+THETA_DEG = [60.0, 90.0, 120.0]  # the published study's demonstration input
+COLLIDING_DEG = [60.0, 90.0, 220.0]  # the study's colliding input: no home assembly
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    status = main(list(argv))
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def run_json(capsys: pytest.CaptureFixture[str], *argv: str) -> Any:
+    status, out, err = run(capsys, *argv, "--json")
+    assert status == 0, err
+    assert err == ""
+
+    def no_constants(name: str) -> None:
+        raise AssertionError(f"JSON output contains {name}")
+
+    return json.loads(out, parse_constant=no_constants)
+
+
+def matrix_args(R: np.ndarray) -> list[str]:
+    return ["--matrix", *(repr(float(x)) for x in np.asarray(R).ravel())]
+
+
+# ------------------------------------------------------------------------------- fk
+def test_fk_json_matches_library(capsys: pytest.CaptureFixture[str]) -> None:
+    out = run_json(capsys, "fk", *map(str, THETA_DEG))
+    theta = np.radians(THETA_DEG)
+    fk = spm.forward_kinematics(theta)
+    jac = spm.jacobian(theta)
+    atol = TOL["json"]
+    assert out["reachable"] is True
+    assert out["theta_deg"] == THETA_DEG
+    assert out["mode"] == "+++/-"
+    assert out["home"] is True
+    np.testing.assert_allclose(out["R"], fk.R, atol=atol)
+    np.testing.assert_allclose(out["v"], fk.v, atol=atol)
+    np.testing.assert_allclose(out["J"], jac.J, atol=atol)
+    np.testing.assert_allclose(out["b"], jac.b, atol=atol)
+    np.testing.assert_allclose(out["det_a"], jac.det_a, atol=atol)
+    np.testing.assert_allclose(out["dexterity"], jac.dexterity, atol=atol)
+    np.testing.assert_allclose(out["dexterity_ga"], jac.dexterity_ga, atol=atol)
+    np.testing.assert_allclose(out["singularity_margin"], jac.singularity_margin, atol=atol)
+    assert out["type_i_singular"] is False
+    assert out["type_ii_singular"] is False
+    assert out["residual"] < TOL["residual"]
+    # rpy and quaternion describe the same R.
+    rpy = np.radians(out["rpy_deg"])
+    np.testing.assert_allclose(matrix_from_rpy(rpy), fk.R, atol=atol)
+    quaternion = out["quaternion_wxyz"]
+    np.testing.assert_allclose(matrix_from_quaternion(quaternion), fk.R, atol=atol)
+
+
+def test_fk_text_is_aligned(capsys: pytest.CaptureFixture[str]) -> None:
+    status, out, err = run(capsys, "fk", "60", "90", "120")
+    assert status == 0
+    assert err == ""
+    lines = {line.split()[0]: line for line in out.splitlines() if line and line[0] != " "}
+    assert lines["reachable"].split()[1] == "true"
+    assert lines["mode"].split()[1] == "+++/-"
+    # Numbers have 6 decimals and are right-aligned in the same columns.
+    assert lines["theta_deg"].split()[1:] == ["60.000000", "90.000000", "120.000000"]
+    columns = {key: [m.end() for m in re.finditer(r"\d\.\d{6}", lines[key])] for key in lines}
+    assert columns["theta_deg"] == columns["R"] == columns["b"] == columns["J"]
+    rows = out.splitlines()
+    first = next(i for i, line in enumerate(rows) if line.startswith("R "))
+    printed = [line.split()[-3:] for line in rows[first : first + 3]]
+    fk = spm.forward_kinematics(np.radians(THETA_DEG))
+    np.testing.assert_allclose(np.array(printed, dtype=float), fk.R, atol=TOL["text"])
+
+
+@pytest.mark.parametrize("theta", [["-30", "20", "10"], ["-1e-3", "-.5", "-7"], ["720", "0", "-0"]])
+def test_fk_negative_and_odd_numbers(capsys: pytest.CaptureFixture[str], theta: list[str]) -> None:
+    out = run_json(capsys, "fk", *theta)
+    expected = [float(t) for t in theta]
+    assert out["theta_deg"] == expected
+    fk = spm.forward_kinematics(np.radians(expected))
+    np.testing.assert_allclose(out["R"], fk.R, atol=TOL["json"])
+
+
+def test_fk_unreachable_is_an_answer(capsys: pytest.CaptureFixture[str]) -> None:
+    out = run_json(capsys, "fk", *map(str, COLLIDING_DEG))
+    assert out["reachable"] is False
+    assert out["R"] is None
+    assert out["J"] is None
+    status, text, err = run(capsys, "fk", *map(str, COLLIDING_DEG))
+    assert status == 0
+    assert err == ""
+    assert any(line.split() == ["reachable", "false"] for line in text.splitlines())
+    assert not any(line.startswith("R ") for line in text.splitlines())
+
+
+def test_fk_all_matches_library(capsys: pytest.CaptureFixture[str]) -> None:
+    out = run_json(capsys, "fk", *map(str, THETA_DEG), "--all")
+    every = spm.forward_kinematics_all(np.radians(THETA_DEG))
+    assert out["count"] == int(every.count) == len(out["modes"])
+    assert [m["label"] for m in out["modes"]] == every.labels[: out["count"]]
+    assert [m["home"] for m in out["modes"]].count(True) == 1
+    for k, mode in enumerate(out["modes"]):
+        assert set(mode) == {"label", "home", "R", "v", "b", "det_a", "residual"}
+        np.testing.assert_allclose(mode["R"], every.R[k], atol=TOL["json"])
+        np.testing.assert_allclose(mode["v"], every.v[k], atol=TOL["json"])
+        np.testing.assert_allclose(mode["b"], every.b[k], atol=TOL["json"])
+        assert mode["home"] == bool(every.home[k])
+    # Without a home mode, the other modes are still listed.
+    out = run_json(capsys, "fk", *map(str, COLLIDING_DEG), "--all")
+    assert out["reachable"] is False
+    assert out["count"] > 0
+    assert not any(m["home"] for m in out["modes"])
+
+
+def test_fk_keys_do_not_depend_on_reachability(capsys: pytest.CaptureFixture[str]) -> None:
+    reachable = run_json(capsys, "fk", "0", "0", "0")
+    unreachable = run_json(capsys, "fk", *map(str, COLLIDING_DEG))
+    assert list(reachable) == list(unreachable)
+    assert reachable["solver"] == "analytic"
+
+
+def test_fk_solver_table_is_the_extension_point(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A solver added to FK_SOLVERS is selectable and yields the same keys; mode and
+    home are derived from its R (here: a non-home assembly mode)."""
+    every = spm.forward_kinematics_all(np.radians(THETA_DEG))
+    other = int(np.argmin(every.home))  # a valid slot that is not the home mode
+
+    def second_mode(theta: np.ndarray, design: spm.SPMDesign) -> FKSolution:
+        modes = spm.forward_kinematics_all(theta, design)
+        return FKSolution(R=modes.R[other], residual=float(modes.residual[other]))
+
+    monkeypatch.setitem(FK_SOLVERS, "second", second_mode)
+    analytic = run_json(capsys, "fk", *map(str, THETA_DEG))
+    second = run_json(capsys, "fk", *map(str, THETA_DEG), "--solver", "second")
+    assert list(second) == list(analytic)
+    assert second["solver"] == "second"
+    assert second["mode"] == every.labels[other]
+    assert second["home"] is False
+    np.testing.assert_allclose(second["R"], every.R[other], atol=TOL["json"])
+    np.testing.assert_allclose(second["b"], every.b[other], atol=TOL["json"])
+    np.testing.assert_allclose(second["det_a"], every.det_a[other], atol=TOL["json"])
+
+
+# ------------------------------------------------------------------------------- ik
+def test_ik_of_fk_gives_back_theta(capsys: pytest.CaptureFixture[str]) -> None:
+    R = spm.forward_kinematics(np.radians(THETA_DEG)).R
+    out = run_json(capsys, "ik", *matrix_args(R))
+    assert out["reachable"] is True
+    assert out["mode"] == "+++"
+    assert out["home"] is True
+    np.testing.assert_allclose(out["theta_deg"], THETA_DEG, atol=TOL["round_trip_deg"])
+    assert all(b > 0 for b in out["b"])
+    # The same orientation as a quaternion and as roll/pitch/yaw [deg].
+    quaternion = [repr(float(x)) for x in quaternion_from_matrix(R)]
+    rpy = [repr(float(x)) for x in np.degrees(rpy_from_matrix(R))]
+    for given_as in (["--quaternion", *quaternion], ["--rpy", *rpy]):
+        other = run_json(capsys, "ik", *given_as)
+        np.testing.assert_allclose(other["theta_deg"], THETA_DEG, atol=TOL["round_trip_deg"])
+
+
+def test_ik_modes_match_library(capsys: pytest.CaptureFixture[str]) -> None:
+    R = matrix_from_rpy(np.radians([10.0, -20.0, 30.0]))
+    every = spm.inverse_kinematics_all(R)
+    out = run_json(capsys, "ik", "--rpy", "10", "-20", "30", "--all")
+    assert out["reachable"] is True
+    assert [m["label"] for m in out["modes"]] == list(every.labels)
+    np.testing.assert_allclose(
+        [m["theta_deg"] for m in out["modes"]], np.degrees(every.theta), atol=TOL["json"]
+    )
+    # A mode by label (even one starting with '-') and by index.
+    for label in ("-+-", "--+"):
+        index = every.labels.index(label)
+        by_label = run_json(capsys, "ik", "--rpy", "10", "-20", "30", "--mode", label)
+        by_index = run_json(capsys, "ik", "--rpy", "10", "-20", "30", "--mode", str(index))
+        assert by_label == by_index
+        assert by_label["mode"] == label
+        np.testing.assert_allclose(
+            by_label["theta_deg"], np.degrees(every.theta[index]), atol=TOL["json"]
+        )
+
+
+def test_ik_unreachable_is_an_answer(capsys: pytest.CaptureFixture[str]) -> None:
+    R = matrix_from_rpy(np.radians([0.0, 100.0, 0.0]))
+    with pytest.raises(spm.UnreachableError) as caught:
+        spm.inverse_kinematics(R)
+    out = run_json(capsys, "ik", "--rpy", "0", "100", "0")
+    assert out["reachable"] is False
+    assert out["theta_deg"] is None
+    assert out["failing_leg"] == caught.value.leg
+    assert out["leg_reachable"][caught.value.leg - 1] is False
+    status, text, err = run(capsys, "ik", "--rpy", "0", "100", "0")
+    assert status == 0
+    assert err == ""
+    assert any(line.split() == ["reachable", "false"] for line in text.splitlines())
+    assert any(line.split() == ["failing_leg", str(caught.value.leg)] for line in text.splitlines())
+
+
+# --------------------------------------------------------------------------- design
+def same_design(a: spm.SPMDesign, b: spm.SPMDesign) -> None:
+    """Equal up to the rounding of radians -> degrees -> radians in the TOML file."""
+    assert a.name == b.name
+    assert a.dimensions == b.dimensions
+    for field in ("alpha1", "alpha2", "beta", "eta", "base_axes"):
+        np.testing.assert_allclose(getattr(a, field), getattr(b, field), atol=TOL["json"])
+
+
+def test_design_round_trip(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    status, out, _ = run(capsys, "design")
+    assert status == 0
+    same_design(spm.SPMDesign.from_toml(out), spm.SPMDesign.prototype())
+    path = tmp_path / "f.toml"
+    status, _, err = run(capsys, "design", "--preset", "agile_eye", "--out", str(path))
+    assert status == 0, err
+    same_design(spm.SPMDesign.load(path), spm.SPMDesign.agile_eye())
+    out_json = run_json(capsys, "fk", "0", "0", "0", "--design", str(path))
+    assert out_json["design"] == "agile_eye"
+    assert out_json["reachable"] is True
+    np.testing.assert_allclose(out_json["R"], np.eye(3), atol=TOL["json"])
+    status, out, _ = run(capsys, "design", "--design", str(path))
+    assert status == 0
+    same_design(spm.SPMDesign.from_toml(out), spm.SPMDesign.agile_eye())
+
+
+# ----------------------------------------------------------------------------- demo
+def test_demo_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    directory = tmp_path / "new" / "dir"
+    status, out, err = run(capsys, "demo", "--out", str(directory))
+    assert status == 0, err
+    assert err == ""
+    assert "wrote" in out
+    data = json.loads((directory / "demo.json").read_text())
+    assert list(data) == ["theta_deg", *(s(DemoContext()).key for s in DEMO_SECTIONS)]
+    assert data["theta_deg"] == THETA_DEG
+    modes = data["assembly_modes"]
+    assert modes["count"] == 8
+    assert [m["home"] for m in modes["modes"]].count(True) == 1
+    fk = spm.forward_kinematics(np.radians(THETA_DEG))
+    np.testing.assert_allclose(data["home_mode"]["R"], fk.R, atol=TOL["json"])
+    np.testing.assert_allclose(data["home_mode"]["v"], fk.v, atol=TOL["json"])
+    assert data["inverse"]["round_trip_error_deg"] < TOL["round_trip_deg"]
+    motion = data["motion"]
+    assert motion["samples"] == len(motion["path"]) == 25
+    assert motion["all_home"] is True
+    assert all(sample["home"] and sample["label"] == "+++/-" for sample in motion["path"])
+    np.testing.assert_allclose(motion["path"][-1]["theta_deg"], THETA_DEG, atol=TOL["json"])
+    np.testing.assert_allclose(motion["path"][-1]["v"], fk.v, atol=TOL["track"])
+    np.testing.assert_allclose(
+        motion["path"][0]["v"], spm.SPMDesign.prototype().v0, atol=TOL["json"]
+    )
+    assert data["colliding_input"]["theta_deg"] == COLLIDING_DEG
+    assert data["colliding_input"]["home_mode_exists"] is False
+    # --json prints the same record.
+    assert run_json(capsys, "demo") == data
+
+
+def test_demo_text(capsys: pytest.CaptureFixture[str]) -> None:
+    status, out, err = run(capsys, "demo")
+    assert status == 0
+    assert err == ""
+    for title in ("Every real assembly mode", "home assembly mode", "Tracked motion"):
+        assert title in out
+    assert "all_home           true" in out
+
+
+# --------------------------------------------------------------------------- errors
+def _bad_files(tmp_path: Path) -> dict[str, Path]:
+    files = {
+        "malformed": "[kinematics\nalpha1_deg = 45\n",
+        "incomplete": "[kinematics]\nalpha1_deg = 45\n",
+        "impossible": "[kinematics]\nalpha1_deg = 45\nalpha2_deg = 190\nbeta_deg = 90\n",
+    }
+    paths = {}
+    for name, text in files.items():
+        paths[name] = tmp_path / f"{name}.toml"
+        paths[name].write_text(text)
+    return paths
+
+
+BAD_ARGUMENTS = [
+    [],
+    ["bogus"],
+    ["fk", "1", "2"],
+    ["fk", "1", "2", "3", "4"],
+    ["fk", "nan", "0", "0"],
+    ["fk", "-inf", "0", "0"],
+    ["fk", "a", "b", "c"],
+    ["fk", "0", "0", "0", "--bogus"],
+    ["fk", "0", "0", "0", "--solver", "nope"],
+    ["fk", "0", "0", "0", "--design", "missing.toml"],
+    ["fk", "0", "0", "0", "--design", "{malformed}"],
+    ["fk", "0", "0", "0", "--design", "{incomplete}"],
+    ["fk", "0", "0", "0", "--design", "{impossible}"],
+    ["fk", "0", "0", "0", "--design", "{tmp}"],
+    ["ik"],
+    ["ik", "--matrix", "1", "0", "0", "0", "1", "0", "0", "0", "2"],
+    ["ik", "--matrix", "1", "0", "0", "0", "1", "0", "0", "0", "-1"],
+    ["ik", "--matrix", "1", "0", "0"],
+    ["ik", "--quaternion", "0", "0", "0", "0"],
+    ["ik", "--rpy", "0", "0", "0", "--quaternion", "1", "0", "0", "0"],
+    ["ik", "--rpy", "0", "0", "0", "--mode", "9"],
+    ["ik", "--rpy", "0", "0", "0", "--mode", "+*+"],
+    ["ik", "--rpy", "0", "0", "0", "--mode", "1", "--all"],
+    ["design", "--preset", "nope"],
+    ["design", "--preset", "prototype", "--design", "x.toml"],
+    ["design", "--out", "{tmp}/no/such/dir/f.toml"],
+    ["demo", "--out", "{malformed}"],
+]
+
+
+@pytest.mark.parametrize("argv", BAD_ARGUMENTS, ids=" ".join)
+def test_bad_arguments_one_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, argv: list[str]
+) -> None:
+    names = {name: str(path) for name, path in _bad_files(tmp_path).items()}
+    argv = [arg.format(tmp=tmp_path, **names) for arg in argv]
+    status, out, err = run(capsys, *argv)
+    assert status == 2
+    assert out == ""
+    assert err.startswith("spm: error: ")
+    assert err.count("\n") == 1, err
+    assert "Traceback" not in err
+    assert "usage:" not in err
+
+
+def test_help_and_version(capsys: pytest.CaptureFixture[str]) -> None:
+    status, out, _ = run(capsys, "--help")
+    assert status == 0
+    assert "fk" in out and "demo" in out
+    status, out, _ = run(capsys, "--version")
+    assert status == 0
+    assert spm.__version__ in out
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.text(min_size=1, max_size=8), min_size=3, max_size=3))
+def test_any_words_as_angles(words: list[str]) -> None:
+    """Whatever the user types, fk answers (status 0) or says why not (status 2)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main(["fk", *words, "--json"])
+
+    def finite(word: str) -> bool:
+        try:
+            return math.isfinite(float(word))
+        except ValueError:
+            return False
+
+    if status == 0 and not out.getvalue().startswith("{"):
+        assert "usage:" in out.getvalue()  # a word that abbreviates --help
+    elif status == 0:
+        assert all(finite(w) for w in words)
+        assert json.loads(out.getvalue())["theta_deg"] == [float(w) for w in words]
+    else:
+        assert status == 2
+        assert err.getvalue().startswith("spm: error: ")
+        assert err.getvalue().count("\n") == 1
+
+
+# ----------------------------------------------------------------------- subprocess
+def run_module(*argv: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``python -m spm_pin ...`` in a fresh interpreter that imports this checkout."""
+    root = str(Path(spm.__file__).resolve().parent.parent)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run(
+        [sys.executable, "-m", "spm_pin", *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        cwd=cwd,
+        env=env,
+    )
+
+
+def test_python_m_spm_pin(tmp_path: Path) -> None:
+    result = run_module("fk", "60", "90", "120", "--json", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    out = json.loads(result.stdout)
+    fk = spm.forward_kinematics(np.radians(THETA_DEG))
+    np.testing.assert_allclose(out["R"], fk.R, atol=TOL["json"])
+    bad = run_module("fk", "1", "2", cwd=tmp_path)
+    assert bad.returncode == 2
+    assert bad.stderr.startswith("spm: error: ")
+    assert bad.stderr.count("\n") == 1
+    assert "Traceback" not in bad.stderr
