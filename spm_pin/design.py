@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import sys
 from collections.abc import Mapping, Sequence
 from functools import cached_property
@@ -83,15 +84,19 @@ class LinkDimensions:
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
-            values = value if isinstance(value, tuple) else (value,)
-            if field.name == "servo_size" and len(values) != 3:
-                raise DesignError(
-                    f"dimensions.servo_size must have 3 entries [m], got {value!r}",
-                    parameter="servo_size",
-                    value=value,
-                )
+            values: tuple[Any, ...]
+            if field.name == "servo_size":
+                if not isinstance(value, tuple) or len(value) != 3:
+                    raise DesignError(
+                        f"dimensions.servo_size must be 3 lengths [m], got {value!r}",
+                        parameter="servo_size",
+                        value=value,
+                    )
+                values = value
+            else:
+                values = (value,)
             for item in values:
-                if not isinstance(item, (int, float)) or not math.isfinite(item) or item <= 0:
+                if not _is_number(item) or not math.isfinite(item) or item <= 0:
                     raise DesignError(
                         f"dimensions.{field.name} must be a finite positive number, got {value!r}",
                         parameter=field.name,
@@ -130,7 +135,9 @@ def _unit(vector: Sequence[float], name: str) -> tuple[float, float, float]:
     norm = float(np.linalg.norm(array))
     if norm < _GEOMETRY_TOL:
         raise DesignError(f"{name} must be non-zero, got {vector!r}", parameter=name, value=vector)
-    unit = array / norm
+    # A vector that is already unit to rounding is kept bit for bit, so that saving
+    # and loading a design never moves the last digit.
+    unit = array if abs(norm - 1.0) <= 4 * np.finfo(float).eps else array / norm
     return (float(unit[0]), float(unit[1]), float(unit[2]))
 
 
@@ -140,8 +147,12 @@ def _round_deg(angle: float) -> float:
     return round(math.degrees(angle), 12)
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
 def _check_angle(value: float, name: str, low: float, high: float) -> float:
-    if not isinstance(value, (int, float)) or not math.isfinite(value):
+    if not _is_number(value) or not math.isfinite(value):
         raise DesignError(f"{name} must be a finite angle [rad], got {value!r}", parameter=name)
     if not low < value < high:
         raise DesignError(
@@ -192,7 +203,7 @@ class SPMDesign:
                 value=self.eta,
             )
         object.__setattr__(self, "eta", eta)
-        if len(self.base_axes) != 3:
+        if not isinstance(self.base_axes, (tuple, list)) or len(self.base_axes) != 3:
             raise DesignError(
                 f"base_axes must hold 3 unit vectors, got {self.base_axes!r}",
                 parameter="base_axes",
@@ -241,6 +252,16 @@ class SPMDesign:
         name: str = "coaxial",
     ) -> SPMDesign:
         """A coaxial SPM (u_i = [0, 0, -1]) with legs at 0, 120, 240 deg; angles in degrees."""
+        for parameter, value in (
+            ("alpha1", alpha1_deg),
+            ("alpha2", alpha2_deg),
+            ("beta", beta_deg),
+        ):
+            if not _is_number(value):
+                raise DesignError(
+                    f"{parameter} must be an angle in degrees, got {value!r}",
+                    parameter=parameter,
+                )
         return cls(
             alpha1=math.radians(alpha1_deg),
             alpha2=math.radians(alpha2_deg),
@@ -414,9 +435,15 @@ class SPMDesign:
                 raise FileFormatError(f"{key} must be a number, got {value!r}", path=source)
             return float(value)
 
+        if not isinstance(data.get("name", ""), str):
+            raise FileFormatError(f"name must be a string, got {data['name']!r}", path=source)
         try:
             dim_values: dict[str, Any] = {
-                k: tuple(number(x, k) for x in v) if isinstance(v, list) else number(v, k)
+                k: (
+                    tuple(number(x, k) for x in v)
+                    if isinstance(v, list) and k == "servo_size"
+                    else number(v, k)
+                )
                 for k, v in dims.items()
             }
             kwargs: dict[str, Any] = {
@@ -424,7 +451,7 @@ class SPMDesign:
                 "alpha2": math.radians(number(kin["alpha2_deg"], "alpha2_deg")),
                 "beta": math.radians(number(kin["beta_deg"], "beta_deg")),
                 "dimensions": LinkDimensions(**dim_values),
-                "name": str(data.get("name", "custom")),
+                "name": data.get("name", "custom"),
             }
             if "eta_deg" in kin:
                 eta = kin["eta_deg"]

@@ -10,6 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .kinematics._common import as_rotation
 
 __all__ = ["matrix_from_quaternion", "matrix_from_rpy", "quaternion_from_matrix", "rpy_from_matrix"]
 
@@ -69,8 +70,12 @@ def matrix_from_rpy(rpy: npt.ArrayLike) -> FloatArray:
 
 
 def rpy_from_matrix(R: npt.ArrayLike) -> FloatArray:
-    """Roll, pitch, yaw [rad], (..., 3), of rotation matrices (..., 3, 3)."""
-    m = np.asarray(R, dtype=float)
+    """Roll, pitch, yaw [rad], (..., 3), of rotation matrices (..., 3, 3).
+
+    Raises:
+        InputError: R is not (a batch of) rotation matrices.
+    """
+    m = as_rotation(R)
     yaw = np.arctan2(m[..., 1, 0], m[..., 0, 0])
     pitch = np.arctan2(-m[..., 2, 0], np.hypot(m[..., 2, 1], m[..., 2, 2]))
     roll = np.arctan2(m[..., 2, 1], m[..., 2, 2])
@@ -78,8 +83,12 @@ def rpy_from_matrix(R: npt.ArrayLike) -> FloatArray:
 
 
 def quaternion_from_matrix(R: npt.ArrayLike) -> FloatArray:
-    """Unit quaternions (..., 4) = (w, x, y, z) with w >= 0 of rotation matrices."""
-    m = np.asarray(R, dtype=float)
+    """Unit quaternions (..., 4) = (w, x, y, z) with w >= 0 of rotation matrices.
+
+    Raises:
+        InputError: R is not (a batch of) rotation matrices.
+    """
+    m = as_rotation(R)
     m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]

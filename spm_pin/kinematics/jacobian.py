@@ -26,14 +26,16 @@ import numpy as np
 import numpy.typing as npt
 
 from ..design import SPMDesign
-from ..errors import SingularityError, UnreachableError
+from ..errors import InputError, SingularityError, UnreachableError
 from ._common import BoolArray, FloatArray, as_rotation, as_theta, check_design, proximal_axes
 from .fk import forward_kinematics
 
 __all__ = ["JacobianResult", "jacobian"]
 
 #: Default threshold on the normalised measures below which a configuration is singular.
-SINGULAR_TOL = 1e-9
+#: At an exact type I pose, b_ii comes from the square root of a discriminant that is
+#: zero up to rounding, so it reads about sqrt(eps) ~ 1e-8: the threshold sits above.
+SINGULAR_TOL = 1e-7
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,11 +102,22 @@ def jacobian(
     design = check_design(design)
     theta_in = as_theta(theta)
     shape = theta_in.shape[:-1]
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0.0 <= tol < 1.0:
+        raise InputError(f"tol must be a number in [0, 1), got {tol!r}", argument="tol", value=tol)
     if R is None:
         fk = forward_kinematics(theta_in, design)
         rotation, reachable = fk.R, fk.reachable
     else:
-        rotation = np.broadcast_to(as_rotation(R), (*shape, 3, 3))
+        given = as_rotation(R)
+        try:
+            rotation = np.broadcast_to(given, (*shape, 3, 3))
+        except ValueError as exc:
+            raise InputError(
+                f"R of shape {given.shape} does not match theta of shape {theta_in.shape}; "
+                f"R must broadcast to {(*shape, 3, 3)}",
+                argument="R",
+                value=R,
+            ) from exc
         reachable = np.ones(shape, dtype=bool)
     if theta_in.ndim == 1 and not bool(reachable):
         raise UnreachableError(
