@@ -89,6 +89,21 @@ def as_rotation(rotation: npt.ArrayLike, name: str = "R") -> FloatArray:
     return array
 
 
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Cross product over the last axis (length 3), with broadcasting.
+
+    The same as ``np.cross`` written out by components: several times faster on
+    large batches of 3-vectors.
+    """
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
 def rotate_about(axes: FloatArray, angles: FloatArray, vectors: FloatArray) -> FloatArray:
     """Rodrigues: turn ``vectors`` about unit ``axes`` by ``angles`` (right-handed).
 
@@ -97,7 +112,7 @@ def rotate_about(axes: FloatArray, angles: FloatArray, vectors: FloatArray) -> F
     c = np.cos(angles)[..., None]
     s = np.sin(angles)[..., None]
     along = np.sum(axes * vectors, axis=-1, keepdims=True) * axes
-    result: FloatArray = along + c * (vectors - along) + s * np.cross(axes, vectors)
+    result: FloatArray = along + c * (vectors - along) + s * cross(axes, vectors)
     return result
 
 

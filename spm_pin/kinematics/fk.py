@@ -32,6 +32,7 @@ prototype), pass ``reference`` to choose by continuity, or use
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -45,6 +46,7 @@ from ._common import (
     as_rotation,
     as_theta,
     check_design,
+    cross,
     proximal_axes,
     rotation_about,
 )
@@ -73,9 +75,10 @@ _IMAG_TOL = 1e-4
 _DUPLICATE_TOL = 1e-7
 _NEWTON_STEPS_POLISH = 6
 _NEWTON_STEPS_SLOW = 40
-_NEWTON_STEPS_FAST = 5
+_NEWTON_STEPS_FAST = 3
 #: Residual of the two equations regarded as rounding level after polishing.
 _POLISHED = 1e-14
+_POLISH_EXTRA = 5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,8 +169,8 @@ def _cone_frames(w: FloatArray, design: SPMDesign) -> FloatArray:
 
     p = (u x w) / |u x w| with |u x w| = sin a1 (w stays at a1 from u), q = w x p.
     """
-    p = np.cross(design.u, w) / math.sin(design.alpha1)
-    q = np.cross(w, p)
+    p = cross(design.u, w) / math.sin(design.alpha1)
+    q = cross(w, p)
     c2, s2 = math.cos(design.alpha2), math.sin(design.alpha2)
     return np.stack([c2 * w, s2 * p, s2 * q], axis=-1)
 
@@ -184,7 +187,7 @@ def _setup(theta: FloatArray, design: SPMDesign) -> _Legs:
     w3 = w[:, 2]
     t1 = np.einsum("nk,nkj->nj", w3, V1)  # w3 . V1 columns
     t2 = np.einsum("nk,nkj->nj", w3, V2)
-    cross_cols = np.cross(np.swapaxes(V2, -1, -2), w3[:, None, :])  # (n, 3 cols, 3)
+    cross_cols = cross(np.swapaxes(V2, -1, -2), w3[:, None, :])  # (n, 3 cols, 3)
     M2 = d * (np.swapaxes(V1, -1, -2) @ np.swapaxes(cross_cols, -1, -2))
     M2[:, :, 0] += a * t1
     M2[:, 0, :] += b * t2
@@ -250,9 +253,9 @@ def _platform(
     """R from phi_1, phi_2; V (..., 3, 3), phi (...). Returns (..., 3, 3)."""
     v1 = np.einsum("...ij,...j->...i", legs_V1, _m(phi1))
     v2 = np.einsum("...ij,...j->...i", legs_V2, _m(phi2))
-    world = np.stack([v1, v2, np.cross(v1, v2)], axis=-1)
+    world = np.stack([v1, v2, cross(v1, v2)], axis=-1)
     v0 = design.v0
-    body = np.stack([v0[0], v0[1], np.cross(v0[0], v0[1])], axis=-1)
+    body = np.stack([v0[0], v0[1], cross(v0[0], v0[1])], axis=-1)
     R: FloatArray = world @ np.linalg.inv(body)
     return R
 
@@ -275,9 +278,9 @@ def _signs(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """v, b (..., 3) and det A (...) of solutions R (..., 3, 3) with axes w (..., 3, 3)."""
     v = _platform_axes(R, design)
-    b = np.sum(np.cross(design.u, w) * v, axis=-1)
-    A = np.cross(w, v)
-    det_a = np.sum(A[..., 0, :] * np.cross(A[..., 1, :], A[..., 2, :]), axis=-1)
+    b = np.sum(cross(design.u, w) * v, axis=-1)
+    A = cross(w, v)
+    det_a = np.sum(A[..., 0, :] * cross(A[..., 1, :], A[..., 2, :]), axis=-1)
     return v, b, det_a
 
 
@@ -604,20 +607,37 @@ def forward_kinematics(
     )
 
 
+@functools.lru_cache(maxsize=32)
+def _home_slope(design: SPMDesign) -> FloatArray:
+    """d(phi_1, phi_2)/d(theta) of the home mode at theta = 0, shape (2, 3).
+
+    Central differences of the home solution; theta @ slope.T is a first-order
+    guess of the home mode that Newton then finishes in a few steps.
+    """
+    h = 1e-6
+    probes = np.concatenate([np.eye(3) * h, -np.eye(3) * h])
+    legs = _setup(probes, design)
+    zeros = np.zeros(6)
+    phi1, phi2, _ = _newton(legs.M, zeros, zeros, _NEWTON_STEPS_FAST + 3)
+    slope = np.stack([phi1[:3] - phi1[3:], phi2[:3] - phi2[3:]]) / (2 * h)
+    slope.setflags(write=False)
+    return slope
+
+
 def _home_newton(
     theta: FloatArray, design: SPMDesign, reference: FloatArray | None
 ) -> tuple[FloatArray, BoolArray]:
     """Newton towards the home mode; returns R (n, 3, 3) and which items it certifies.
 
-    Newton starts from the home-like guess phi = 0 (or from ``reference``). Items it
-    does not certify are tried again by continuation from home: first at theta / 2,
-    then at theta. An item is certified when it converged and satisfies the home
-    sign rule.
+    Newton starts from a first-order guess of the home mode (or from ``reference``).
+    Items it does not certify are tried again by continuation from home: first at
+    theta / 2, then at theta. An item is certified when it converged and satisfies
+    the home sign rule.
     """
-    n = theta.shape[0]
     legs = _setup(theta, design)
     if reference is None:
-        phi1, phi2 = np.zeros(n), np.zeros(n)
+        slope = _home_slope(design)
+        phi1, phi2 = theta @ slope[0], theta @ slope[1]
     else:
         v_ref = np.einsum("njk,ik->nij", reference, design.v0)
         phi1 = _cone_angle(legs.V1, v_ref[:, 0])
@@ -626,11 +646,11 @@ def _home_newton(
     R, done = _certify(legs, phi1, phi2, design)
     if reference is None and not np.all(done):
         rest = np.nonzero(~done)[0]
-        half = _setup(0.5 * theta[rest], design)
-        zeros = np.zeros(rest.shape[0])
-        p1, p2, _ = _newton(half.M, zeros, zeros, _NEWTON_STEPS_FAST - 2)
+        half_theta = 0.5 * theta[rest]
+        half = _setup(half_theta, design)
+        p1, p2, _ = _newton(half.M, half_theta @ slope[0], half_theta @ slope[1], 3)
         sub = _Legs(w=legs.w[rest], V1=legs.V1[rest], V2=legs.V2[rest], M=legs.M[rest])
-        p1, p2, _ = _newton(sub.M, p1, p2, _NEWTON_STEPS_FAST)
+        p1, p2, _ = _newton(sub.M, p1, p2, _NEWTON_STEPS_FAST + 1)
         R[rest], done[rest] = _certify(sub, p1, p2, design)
     return R, done
 
@@ -641,11 +661,11 @@ def _certify(
     """R of Newton's solutions after polishing, and which of them converged
     (residual <= RESIDUAL_TOL) into the home mode.
 
-    One more Newton step for all, then up to two more for items still above
-    rounding level, so accepted solutions end at machine precision.
+    One more Newton step for all, then up to ``_POLISH_EXTRA`` more for items still
+    above rounding level, so accepted solutions end at machine precision.
     """
     phi1, phi2, res = _newton(legs.M, phi1, phi2, 1)
-    for _ in range(2):
+    for _ in range(_POLISH_EXTRA):
         again = np.nonzero(res > _POLISHED)[0]
         if again.size == 0:
             break
