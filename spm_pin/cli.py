@@ -11,6 +11,7 @@ Commands::
            [--mode LABEL|INDEX] [--all] [--json] [--design FILE]
     spm design [--preset NAME | --design FILE] [--out FILE]
     spm demo [--out DIR] [--json]
+    spm export [--design FILE] [--out DIR] [--json]
 
 Every bad argument and every :class:`~spm_pin.SPMError` raised by the library is
 reported as one line ``spm: error: ...`` on stderr with exit status 2.
@@ -633,6 +634,30 @@ def _run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- export
+def _run_export(args: argparse.Namespace) -> int:
+    design = _design(args)
+    # Imported here: the model layer (trimesh) is not needed by the other commands.
+    from .model.export import export
+
+    written = export(design, args.out)
+    if args.json:
+        print(
+            _dumps(
+                {
+                    "design": design.name,
+                    "out": str(args.out),
+                    "files": [str(p) for p in written.values()],
+                }
+            )
+        )
+    else:
+        print(f"wrote the robot files of design {design.name!r} to {args.out}:")
+        for path in written.values():
+            print(f"  {path}")
+    return 0
+
+
 # ---------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``spm`` (errors raise instead of exiting)."""
@@ -722,6 +747,19 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", metavar="DIR", help="also write DIR/demo.json")
     _add_json_option(demo)
     demo.set_defaults(run=_run_demo)
+
+    export = commands.add_parser(
+        "export",
+        help="write the URDF, MJCF and link meshes",
+        description="Write the robot files of a design: DIR/spm.urdf (open tree), "
+        "DIR/spm.xml (MJCF with the loop-closing welds) and DIR/meshes/<link>.stl.",
+    )
+    export.add_argument(
+        "--out", metavar="DIR", default="urdf", help="output directory (default: ./urdf)"
+    )
+    _add_json_option(export)
+    _add_design_option(export)
+    export.set_defaults(run=_run_export)
     return parser
 
 
@@ -735,7 +773,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parser.parse_args(None if argv is None else list(argv))
         if args.command is None:
-            raise _UsageError("a command is required: fk, ik, design or demo (see spm --help)")
+            raise _UsageError(
+                "a command is required: fk, ik, design, export or demo (see spm --help)"
+            )
         status: int = args.run(args)
         return status
     except SystemExit as exc:  # --help and --version
