@@ -7,13 +7,18 @@ from typing import TYPE_CHECKING, Any
 from ._version import __version__
 from .design import LinkDimensions, SPMDesign
 from .errors import (
+    CommunicationError,
     ConvergenceError,
     DesignError,
     FileFormatError,
+    HardwareError,
     InputError,
+    ServoAlertError,
+    ServoError,
     SingularityError,
     SPMError,
     UnreachableError,
+    UnsafeCommandError,
 )
 from .kinematics import (
     FKAllResult,
@@ -31,11 +36,90 @@ from .kinematics import (
 )
 
 if TYPE_CHECKING:
+    from .calibration import (
+        CalibrationResult,
+        IdentifiabilityWarning,
+        Readings,
+        calibrate,
+        load_readings,
+        plan_poses,
+        synthetic_readings,
+    )
+    from .closure import ClosedLoop, FrameTargetResult, PathResult, ProjectionResult
+    from .collision import CollisionChecker, CollisionReport
+    from .dynamics import (
+        XM540_W150,
+        ClosedLoopDynamics,
+        ForwardDynamicsResult,
+        InverseDynamicsResult,
+        JointFriction,
+        ServoCheck,
+        ServoController,
+        ServoModel,
+        SimulationResult,
+        Simulator,
+        Trajectory,
+        check_servo,
+        forward_dynamics,
+        holding_torques,
+        inverse_dynamics,
+        plot_torques,
+        simulate_mujoco,
+    )
     from .model.robot import SPMRobot, build_robot
+    from .workspace import WorkspaceMap, WorkspaceSettings, workspace_map
 
 #: Names served lazily from submodules that import Pinocchio (``import spm_pin`` stays
 #: light): name -> module.
 _LAZY = {"SPMRobot": ".model.robot", "build_robot": ".model.robot"}
+#: The generic loop-closure solver (Pinocchio).
+_LAZY.update(
+    dict.fromkeys(("ClosedLoop", "FrameTargetResult", "PathResult", "ProjectionResult"), ".closure")
+)
+#: Constrained dynamics, simulation and servos (Pinocchio; MuJoCo and matplotlib only
+#: inside the functions that need them).
+_LAZY.update(
+    dict.fromkeys(
+        (
+            "ClosedLoopDynamics",
+            "ForwardDynamicsResult",
+            "InverseDynamicsResult",
+            "JointFriction",
+            "ServoCheck",
+            "ServoController",
+            "ServoModel",
+            "SimulationResult",
+            "Simulator",
+            "Trajectory",
+            "XM540_W150",
+            "check_servo",
+            "forward_dynamics",
+            "holding_torques",
+            "inverse_dynamics",
+            "plot_torques",
+            "simulate_mujoco",
+        ),
+        ".dynamics",
+    )
+)
+#: Self-collision (Pinocchio, coal) and workspace maps.
+_LAZY.update(dict.fromkeys(("CollisionChecker", "CollisionReport"), ".collision"))
+_LAZY.update(dict.fromkeys(("WorkspaceMap", "WorkspaceSettings", "workspace_map"), ".workspace"))
+#: Calibration (scipy is imported only when calibrating).
+_LAZY.update(
+    dict.fromkeys(
+        (
+            "CalibrationResult",
+            "IdentifiabilityWarning",
+            "Readings",
+            "calibrate",
+            "load_readings",
+            "plan_poses",
+            "synthetic_readings",
+        ),
+        ".calibration",
+    )
+)
 
 
 def __getattr__(name: str) -> Any:
@@ -54,28 +138,66 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
+    "XM540_W150",
+    "CalibrationResult",
+    "ClosedLoop",
+    "ClosedLoopDynamics",
+    "CollisionChecker",
+    "CollisionReport",
+    "CommunicationError",
     "ConvergenceError",
     "DesignError",
     "FKAllResult",
     "FKResult",
     "FileFormatError",
+    "ForwardDynamicsResult",
+    "FrameTargetResult",
+    "HardwareError",
     "IKAllResult",
     "IKResult",
+    "IdentifiabilityWarning",
     "InputError",
+    "InverseDynamicsResult",
     "JacobianResult",
+    "JointFriction",
     "LinkDimensions",
+    "PathResult",
+    "ProjectionResult",
+    "Readings",
     "SPMDesign",
     "SPMError",
     "SPMRobot",
+    "ServoAlertError",
+    "ServoCheck",
+    "ServoController",
+    "ServoError",
+    "ServoModel",
+    "SimulationResult",
+    "Simulator",
     "SingularityError",
     "TrackResult",
+    "Trajectory",
     "UnreachableError",
+    "UnsafeCommandError",
+    "WorkspaceMap",
+    "WorkspaceSettings",
     "__version__",
     "build_robot",
+    "calibrate",
+    "check_servo",
+    "forward_dynamics",
     "forward_kinematics",
     "forward_kinematics_all",
+    "holding_torques",
+    "inverse_dynamics",
     "inverse_kinematics",
     "inverse_kinematics_all",
     "jacobian",
+    "load_readings",
+    "plan_poses",
+    "plot_torques",
+    "simulate_mujoco",
+    "synthetic_readings",
     "track",
+    "workspace_map",
 ]

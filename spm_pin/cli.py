@@ -6,12 +6,26 @@ where a value does not exist; NaN is never emitted).
 
 Commands::
 
-    spm fk T1 T2 T3 [--all] [--json] [--design FILE] [--solver analytic]
+    spm fk T1 T2 T3 [--all] [--json] [--design FILE] [--solver analytic|projection]
     spm ik (--matrix R11 .. R33 | --quaternion W X Y Z | --rpy ROLL PITCH YAW)
            [--mode LABEL|INDEX] [--all] [--json] [--design FILE]
     spm design [--preset NAME | --design FILE] [--out FILE]
     spm demo [--out DIR] [--json]
     spm export [--design FILE] [--out DIR] [--json]
+    spm show T1 T2 T3 [--html FILE] [--mode LABEL] [--axes] [--frame] [--json] [--design FILE]
+    spm animate [--from T1 T2 T3] --to T1 T2 T3 [--samples N] [--duration S] --html FILE
+                [--axes] [--frame] [--json] [--design FILE]
+    spm servo emulate [--ids ID ...] | status | move T1 T2 T3 | follow  (see spm servo -h)
+    spm calibrate READINGS.csv [--out FILE] [--design FILE] [--parameters LIST] [--force]
+                [--report FILE] [--plot FILE | --no-plot] [--offsets FILE] [--json]
+    spm plan-poses N [--out FILE] [--design FILE] [--parameters LIST] [--seed S] [--json]
+    spm synth-readings [N] --out FILE [--poses FILE] [--seed S] [--unit UNIT] [--json]
+    spm torques [--from T1 T2 T3] (--to T1 T2 T3 | --file CSV) [--duration S] [--rate HZ]
+                [--gravity GX GY GZ] [--plot FILE] [--json] [--design FILE]
+    spm collide T1 T2 T3 [--margin-mm MM] [--json] [--design FILE]
+    spm workspace [--step DEG | --samples N [--seed S]] [--range LOW HIGH] [--margin-mm MM]
+                [--min-dexterity X] [--no-clearance] [--workers N] [--out DIR]
+                [--no-plots] [--quiet] [--json] [--design FILE]
 
 Every bad argument and every :class:`~spm_pin.SPMError` raised by the library is
 reported as one line ``spm: error: ...`` on stderr with exit status 2.
@@ -63,6 +77,7 @@ __all__ = [
     "DemoSection",
     "FKSolution",
     "build_parser",
+    "collide_record",
     "demo_record",
     "fk_all_record",
     "fk_record",
@@ -77,10 +92,11 @@ Record = dict[str, Any]
 EXIT_USAGE = 2
 
 #: Numbers that argparse must treat as positionals, not options: negative decimals
-#: with exponents, -inf/-nan (rejected later with a clear message) and working-mode
-#: labels such as ``-+-``.
+#: with exponents, -inf/-nan (rejected later with a clear message), working-mode
+#: labels such as ``-+-`` and assembly-mode labels such as ``-+-/+``.
 _NEGATIVE_ARGUMENT = re.compile(
-    r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^-(inf|infinity|nan)$|^-[+-]{2}$", re.IGNORECASE
+    r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^-(inf|infinity|nan)$|^-[+-]{2}(/[+-])?$",
+    re.IGNORECASE,
 )
 
 
@@ -259,10 +275,31 @@ def _fk_analytic(theta: FloatArray, design: SPMDesign) -> FKSolution:
     return FKSolution(R=fk.R, residual=float(fk.residual))
 
 
+def _fk_projection(theta: FloatArray, design: SPMDesign) -> FKSolution:
+    """Newton projection on the Pinocchio model (:class:`~spm_pin.ClosedLoop`), from home.
+
+    Cold start at home, path following from home if Newton fails. The residual is the
+    norm of the two welds' errors [rad]; R is the platform frame's rotation.
+    """
+    from .closure import ClosedLoop
+    from .errors import ConvergenceError
+    from .model.robot import build_robot
+
+    robot = build_robot(design)
+    try:
+        result = ClosedLoop.from_robot(robot).project(theta)
+    except ConvergenceError:
+        return FKSolution(R=None, residual=math.nan)
+    R = np.array(robot.placement(result.q, "platform").rotation)
+    return FKSolution(R=R, residual=result.residual)
+
+
 #: Forward-kinematics solvers selectable with ``spm fk --solver NAME``. Every solver
-#: yields the same output keys; everything but R and the residual is derived from R.
+#: yields the same output keys; everything but R and the residual (each solver's own
+#: closure measure) is derived from R.
 FK_SOLVERS: dict[str, Callable[[FloatArray, SPMDesign], FKSolution]] = {
     "analytic": _fk_analytic,
+    "projection": _fk_projection,
 }
 
 _FK_KEYS = (
@@ -658,6 +695,705 @@ def _run_export(args: argparse.Namespace) -> int:
     return 0
 
 
+# ------------------------------------------------------------------------ show/animate
+def _visualizer(args: argparse.Namespace) -> Any:
+    """A :class:`~spm_pin.viz.Visualizer` of the chosen design with the chosen overlays."""
+    try:  # imported here: meshcat is an optional dependency (the viz extra)
+        from .model.robot import build_robot
+        from .viz import Visualizer
+    except ImportError as exc:
+        raise _UsageError(str(exc)) from exc
+    robot = build_robot(_design(args))
+    return Visualizer(robot, joint_axes=args.axes, platform_frame=args.frame)
+
+
+def _add_view_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--axes", action="store_true", help="draw the joint axes u_i, w_i, v_i")
+    parser.add_argument("--frame", action="store_true", help="draw the platform frame")
+
+
+def _serve_until_interrupted(viz: Any, record: Record, as_json: bool) -> None:
+    """Run a live viewer until Ctrl-C or SIGTERM; the server is always stopped."""
+    import signal
+    import threading
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        with viz:
+            record["url"] = viz.url
+            if as_json:
+                print(_dumps(record), flush=True)
+            else:
+                print("\n".join(_render(_plain(record))))
+                print("serving the viewer; open the url in a browser, Ctrl-C to stop", flush=True)
+            with contextlib.suppress(KeyboardInterrupt):
+                threading.Event().wait()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_show(args: argparse.Namespace) -> int:
+    viz = _visualizer(args)
+    theta_deg = [args.T1, args.T2, args.T3]
+    pairs = viz.display(np.radians(theta_deg), mode=args.mode)
+    record: Record = {
+        "design": viz.robot.design.name,
+        "theta_deg": theta_deg,
+        "mode": args.mode,
+        "colliding": [list(pair) for pair in pairs],
+    }
+    if args.html is None:
+        _serve_until_interrupted(viz, record, args.json)
+        return 0
+    record["html"] = str(viz.save_html(args.html))
+    _emit(record, args.json)
+    return 0
+
+
+def _run_animate(args: argparse.Namespace) -> int:
+    if args.samples < 2:
+        raise _UsageError(f"--samples must be at least 2, got {args.samples}")
+    if not args.duration > 0:
+        raise _UsageError(f"--duration must be positive [s], got {args.duration:g}")
+    viz = _visualizer(args)
+    start = np.radians(args.from_deg)
+    end = np.radians(args.to_deg)
+    path = start + np.linspace(0.0, 1.0, args.samples)[:, None] * (end - start)
+    motion = viz.animate(path, dt=args.duration / (args.samples - 1))
+    record: Record = {
+        "design": viz.robot.design.name,
+        "from_deg": args.from_deg,
+        "to_deg": args.to_deg,
+        "samples": args.samples,
+        "duration_s": args.duration,
+        "colliding_samples": motion.colliding_samples,
+        "html": str(viz.save_html(args.html)),
+    }
+    _emit(record, args.json)
+    return 0
+
+
+# ----------------------------------------------------------------------- calibration
+#: Exit status of ``spm calibrate`` when the readings cannot identify the parameters
+#: (nothing is written unless --force).
+EXIT_NOT_IDENTIFIED = 1
+
+
+def _calibration_files(args: argparse.Namespace) -> dict[str, Path]:
+    """Files that ``spm calibrate`` writes: explicit ones, and next to --out the report,
+    the offsets and the plot (``<stem>_report.txt``, ``_offsets.toml``, ``_residuals.png``)."""
+    files: dict[str, Path] = {}
+    if args.out is not None:
+        out = Path(args.out)
+        stem = out.with_suffix("")
+        files = {
+            "design": out,
+            "report": stem.with_name(stem.name + "_report.txt"),
+            "offsets": stem.with_name(stem.name + "_offsets.toml"),
+            "plot": stem.with_name(stem.name + "_residuals.png"),
+        }
+    for key in ("report", "offsets", "plot"):
+        if getattr(args, key) is not None:
+            files[key] = Path(getattr(args, key))
+    if args.no_plot:
+        files.pop("plot", None)
+    return files
+
+
+def _run_calibrate(args: argparse.Namespace) -> int:
+    import importlib.util
+    import warnings
+
+    from . import calibration
+
+    if args.no_plot and args.plot is not None:
+        raise _UsageError("--plot and --no-plot exclude each other")
+    readings = calibration.load_readings(args.readings)
+    design = _design(args)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", calibration.IdentifiabilityWarning)
+        result = calibration.calibrate(
+            readings,
+            design,
+            parameters=args.parameters,
+            loss=args.loss,
+            noise_deg=args.noise_deg,
+            confidence=args.confidence,
+        )
+    files = _calibration_files(args)
+    notes: list[str] = []
+    if "plot" in files and args.plot is None and importlib.util.find_spec("matplotlib") is None:
+        files.pop("plot")
+        notes.append("no residual plot: matplotlib is missing (pip install spm-pin[plot])")
+    trusted = result.ok or args.force
+    written: dict[str, str] = {}
+    if trusted:
+        for key, path in files.items():
+            if key == "design":
+                result.design.save(path)
+            elif key == "report":
+                path.write_text(result.report(), encoding="utf-8")
+            elif key == "offsets":
+                path.write_text(result.offsets_toml(), encoding="utf-8")
+            else:
+                result.plot_residuals(path)
+            written[key] = str(path)
+    if args.json:
+        print(_dumps({**result.as_dict(), "files": written, "notes": notes}))
+    else:
+        print(result.report(), end="")
+        for key, path_text in written.items():
+            print(f"wrote {key}: {path_text}")
+        for note in notes:
+            print(f"note: {note}")
+    if not trusted:
+        what = "nothing written; " if files else ""
+        print(
+            "spm: warning: "
+            + _one_line("; ".join(result.identifiability.warnings))
+            + f" ({what}--force accepts the result anyway)",
+            file=sys.stderr,
+        )
+        return EXIT_NOT_IDENTIFIED
+    return 0
+
+
+def _run_plan_poses(args: argparse.Namespace) -> int:
+    from . import calibration
+
+    if args.count < 1:
+        raise _UsageError(f"N must be a positive number of poses, got {args.count}")
+    design = _design(args)
+    plan = calibration.plan_poses(
+        args.count,
+        design,
+        parameters=args.parameters,
+        kind=args.kind,
+        candidates=args.candidates,
+        seed=args.seed,
+        max_angle_deg=args.max_angle_deg,
+        min_margin=args.min_margin,
+        min_gap_deg=args.min_gap_deg,
+        noise_deg=args.noise_deg,
+    )
+    obs = plan.observability
+    record: Record = {
+        "design": design.name,
+        "poses": int(plan.theta.shape[0]),
+        "candidates": plan.candidates,
+        "observability_index": obs.index,
+        "random_poses_index": plan.random_index,
+        "condition_number": obs.condition_number,
+        "predicted_std_deg": obs.as_dict()["predicted_std_deg"],
+        "warnings": list(obs.identifiability.warnings),
+        "theta_deg": plan.theta_deg,
+    }
+    if args.out is not None:
+        plan.to_csv(args.out)
+        record["out"] = str(args.out)
+    _emit(record, args.json)
+    return 0
+
+
+def _run_synth_readings(args: argparse.Namespace) -> int:
+    from . import calibration
+
+    design = _design(args)
+    if args.poses is not None:
+        poses: Any = calibration.load_poses(args.poses)
+    elif args.count < 1:
+        raise _UsageError(f"N must be a positive number of readings, got {args.count}")
+    else:
+        poses = args.count
+    data = calibration.synthetic_readings(
+        poses,
+        design,
+        seed=args.seed,
+        noise_deg=args.noise_deg,
+        kind=args.kind,
+        unit=args.unit,
+        outlier_fraction=args.outliers,
+    )
+    truth = data.truth.as_dict()
+    comments = [
+        f"synthetic readings of {design.name} (seed {args.seed}, sensor noise "
+        f"{args.noise_deg:g} deg per axis, {int(data.outliers.sum())} outliers)",
+        *(f"true {key}: {value}" for key, value in truth.items() if "reference" not in key),
+    ]
+    data.readings.to_csv(args.out, comments=comments)
+    record: Record = {
+        "design": design.name,
+        "readings": len(data.readings),
+        "kind": args.kind,
+        "unit": args.unit,
+        "seed": args.seed,
+        "out": str(args.out),
+        "truth": truth,
+        "outlier_lines": (np.nonzero(data.outliers)[0] + 1).tolist(),
+    }
+    _emit(record, args.json)
+    return 0
+
+
+def _add_calibration_parsers(commands: Any) -> None:
+    """``spm calibrate``, ``spm plan-poses`` and ``spm synth-readings``."""
+    from .calibration import PARAMETER_GROUPS, PARAMETER_NAMES
+
+    names = f"names ({', '.join(PARAMETER_NAMES)}) or groups ({', '.join(PARAMETER_GROUPS)})"
+    calibrate = commands.add_parser(
+        "calibrate",
+        help="identify encoder offsets, link angles and sensor mounting from readings",
+        description="Calibrate the model against readings of the prototype (CSV: servo "
+        "positions and a sensor orientation per pose; see docs/calibration.md). Prints a "
+        "report; with --out writes the calibrated design (which every command takes with "
+        "--design), FILE_report.txt, FILE_offsets.toml (encoder zero offsets for the servo "
+        "configuration) and FILE_residuals.png. Exit status 1, nothing written, when the "
+        "readings cannot identify the parameters (unless --force). Needs the calibration "
+        "extra (scipy); the plot needs the plot extra (matplotlib).",
+    )
+    calibrate.add_argument("readings", metavar="READINGS.csv", help="the readings file")
+    calibrate.add_argument("--out", metavar="FILE", help="write the calibrated design TOML")
+    calibrate.add_argument(
+        "--parameters",
+        metavar="LIST",
+        help=f"comma-separated {names} (default: offsets,links,mount; offsets,links for "
+        "axis readings)",
+    )
+    calibrate.add_argument(
+        "--loss",
+        default="soft_l1",
+        choices=["soft_l1", "huber", "cauchy", "arctan", "linear"],
+        help="robust loss (default: soft_l1)",
+    )
+    calibrate.add_argument(
+        "--noise-deg",
+        type=_number,
+        default=0.5,
+        metavar="D",
+        help="expected sensor noise per axis [deg] (default: 0.5)",
+    )
+    calibrate.add_argument(
+        "--confidence",
+        type=_number,
+        default=0.95,
+        metavar="C",
+        help="level of the confidence intervals (default: 0.95)",
+    )
+    calibrate.add_argument("--report", metavar="FILE", help="write the report to FILE")
+    calibrate.add_argument("--plot", metavar="FILE", help="write the residual plot (PNG) to FILE")
+    calibrate.add_argument("--no-plot", action="store_true", help="write no residual plot")
+    calibrate.add_argument(
+        "--offsets", metavar="FILE", help="write the encoder zero offsets (TOML) to FILE"
+    )
+    calibrate.add_argument(
+        "--force",
+        action="store_true",
+        help="write the files even when some parameters are not identified",
+    )
+    _add_json_option(calibrate)
+    _add_design_option(calibrate)
+    calibrate.set_defaults(run=_run_calibrate)
+
+    plan = commands.add_parser(
+        "plan-poses",
+        help="choose informative poses for a calibration run",
+        description="Choose N poses that make the calibration parameters observable "
+        "(greedy D-optimal over random admissible poses: reachable, away from "
+        "singularities, proximal links apart) and write them as a pose list (CSV, "
+        "theta_deg per pose) for the hardware to visit.",
+    )
+    plan.add_argument("count", type=int, metavar="N", help="number of poses")
+    plan.add_argument("--out", metavar="FILE", help="write the pose list (CSV)")
+    plan.add_argument("--parameters", metavar="LIST", help=f"comma-separated {names}")
+    plan.add_argument(
+        "--kind",
+        choices=["quaternion", "axes"],
+        default="quaternion",
+        help="what the sensor measures (default: quaternion)",
+    )
+    plan.add_argument("--seed", type=int, default=0, help="seed of the candidates (default 0)")
+    plan.add_argument(
+        "--candidates", type=int, default=2000, metavar="C", help="candidates (default 2000)"
+    )
+    plan.add_argument(
+        "--max-angle-deg",
+        type=_number,
+        default=90.0,
+        metavar="A",
+        help="range of each input around home [deg] (default 90)",
+    )
+    plan.add_argument(
+        "--min-margin",
+        type=_number,
+        default=0.25,
+        metavar="M",
+        help="smallest singularity margin, 0..1 (default 0.25)",
+    )
+    plan.add_argument(
+        "--min-gap-deg",
+        type=_number,
+        default=45.0,
+        metavar="G",
+        help="smallest gap between adjacent proximal links [deg] (default 45)",
+    )
+    plan.add_argument(
+        "--noise-deg",
+        type=_number,
+        default=0.5,
+        metavar="D",
+        help="sensor noise per axis [deg] for the predicted deviations (default 0.5)",
+    )
+    _add_json_option(plan)
+    _add_design_option(plan)
+    plan.set_defaults(run=_run_plan_poses)
+
+    synth = commands.add_parser(
+        "synth-readings",
+        help="write readings of a simulated, perturbed prototype",
+        description="Readings of a perturbed prototype (random offsets, link angles and "
+        "sensor mounting, drawn from --seed) with encoder steps of 0.088 deg and sensor "
+        "noise, at N random poses or at the poses of a pose list; the true values go into "
+        "the file's comments and the output.",
+    )
+    synth.add_argument(
+        "count", type=int, nargs="?", default=100, metavar="N", help="readings (default 100)"
+    )
+    synth.add_argument("--out", metavar="FILE", required=True, help="the readings file to write")
+    synth.add_argument("--poses", metavar="FILE", help="pose list from 'spm plan-poses'")
+    synth.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    synth.add_argument(
+        "--unit",
+        choices=["ticks", "deg", "rad"],
+        default="ticks",
+        help="unit of the servo columns (default: ticks, 4096 per turn)",
+    )
+    synth.add_argument(
+        "--kind",
+        choices=["quaternion", "axes"],
+        default="quaternion",
+        help="what the sensor measures (default: quaternion)",
+    )
+    synth.add_argument(
+        "--noise-deg",
+        type=_number,
+        default=0.5,
+        metavar="D",
+        help="sensor noise per axis [deg] (default 0.5)",
+    )
+    synth.add_argument(
+        "--outliers",
+        type=_number,
+        default=0.0,
+        metavar="F",
+        help="fraction of readings with a gross sensor error (default 0)",
+    )
+    _add_json_option(synth)
+    _add_design_option(synth)
+    synth.set_defaults(run=_run_synth_readings)
+
+
+# --------------------------------------------------------------------------- torques
+def _run_torques(args: argparse.Namespace) -> int:
+    # Imported here: Pinocchio (and matplotlib for --plot) only for this command.
+    from .dynamics import (
+        XM540_W150,
+        ClosedLoopDynamics,
+        Trajectory,
+        check_servo,
+        inverse_dynamics,
+        plot_torques,
+    )
+    from .model.robot import build_robot
+
+    design = _design(args)
+    if args.file is not None:
+        if args.to_deg is not None:
+            raise _UsageError("give either --to or --file, not both")
+        motion = Trajectory.load(args.file)
+        source: Record = {"file": str(args.file)}
+    else:
+        if args.to_deg is None:
+            raise _UsageError("a target is required: --to T1 T2 T3 (or --file CSV)")
+        if not args.duration > 0:
+            raise _UsageError(f"--duration must be positive [s], got {args.duration:g}")
+        if not args.rate > 0:
+            raise _UsageError(f"--rate must be positive [Hz], got {args.rate:g}")
+        motion = Trajectory.minimum_jerk(
+            np.radians(args.from_deg), np.radians(args.to_deg), args.duration, args.rate
+        )
+        source = {"minimum_jerk_from_deg": args.from_deg, "minimum_jerk_to_deg": args.to_deg}
+    dynamics = ClosedLoopDynamics(build_robot(design), gravity=args.gravity)
+    result = inverse_dynamics(dynamics, motion)
+    servo = XM540_W150
+    check = check_servo(result.torque, result.theta_dot, servo, time=motion.time)
+    worst_t, worst_j = check.worst_sample, check.worst_joint
+    record: Record = {
+        "design": design.name,
+        "servo": {
+            "name": servo.name,
+            "stall_torque_nm": servo.stall_torque,
+            "no_load_speed_rpm": servo.no_load_rpm,
+            "voltage_v": servo.voltage,
+        },
+        "trajectory": {
+            **source,
+            "duration_s": motion.duration,
+            "samples": int(motion.time.shape[0]),
+        },
+        "gravity_m_s2": list(args.gravity),
+        "peak_torque_nm": check.peak_torque,
+        "rms_torque_nm": check.rms_torque,
+        "peak_speed_rpm": check.peak_speed * 60.0 / (2.0 * math.pi),
+        "peak_power_w": np.abs(result.power).max(axis=0),
+        "max_utilisation": check.max_utilisation,
+        "within_limits": check.within_limits,
+        "worst": {
+            "joint": f"u_{worst_j + 1}",
+            "time_s": float(motion.time[worst_t]),
+            "torque_nm": float(result.torque[worst_t, worst_j]),
+            "speed_rpm": float(result.theta_dot[worst_t, worst_j]) * 60.0 / (2.0 * math.pi),
+        },
+        "verdict": check.message,
+        "plot": None,
+    }
+    if args.plot is not None:
+        try:
+            record["plot"] = str(plot_torques(result, args.plot, servo))
+        except ImportError as exc:
+            raise _UsageError(f"--plot needs matplotlib: {exc}") from exc
+    _emit(record, args.json)
+    return 0
+
+
+def _add_torques_parser(commands: Any) -> None:
+    torques = commands.add_parser(
+        "torques",
+        help="actuator torques of a motion against the servos' torque-speed limits",
+        description="Closed-loop inverse dynamics of a motion: the torques the three "
+        "XM540-W150 servos must give, their peak and RMS values, and a verdict against "
+        "the servo's torque-speed envelope (7.3 N m stall, 53 rpm no-load at 12 V). The "
+        "motion is a minimum-jerk move from --from (default home) to --to in --duration "
+        "seconds, or a CSV file (time_s,theta_1_deg,theta_2_deg,theta_3_deg).",
+    )
+    torques.add_argument(
+        "--from",
+        dest="from_deg",
+        nargs=3,
+        type=_number,
+        default=[0.0, 0.0, 0.0],
+        metavar=("T1", "T2", "T3"),
+        help="input angles at the start [deg] (default: 0 0 0)",
+    )
+    torques.add_argument(
+        "--to",
+        dest="to_deg",
+        nargs=3,
+        type=_number,
+        metavar=("T1", "T2", "T3"),
+        help="input angles at the end [deg]",
+    )
+    torques.add_argument(
+        "--file",
+        metavar="CSV",
+        help="the motion as CSV: time_s,theta_1_deg,theta_2_deg,theta_3_deg (or _rad)",
+    )
+    torques.add_argument(
+        "--duration", type=_number, default=1.0, metavar="S", help="move time [s] (default 1)"
+    )
+    torques.add_argument(
+        "--rate",
+        type=_number,
+        default=1000.0,
+        metavar="HZ",
+        help="samples per second of the move (default 1000)",
+    )
+    torques.add_argument(
+        "--gravity",
+        nargs=3,
+        type=_number,
+        default=[0.0, 0.0, -9.81],
+        metavar=("GX", "GY", "GZ"),
+        help="gravity in the base frame [m/s^2] (default: 0 0 -9.81, upright)",
+    )
+    torques.add_argument("--plot", metavar="FILE", help="write a PNG of the torques")
+    _add_json_option(torques)
+    _add_design_option(torques)
+    torques.set_defaults(run=_run_torques)
+
+
+# ------------------------------------------------------------------ collide/workspace
+def collide_record(theta_deg: Sequence[float], design: SPMDesign, margin_m: float = 0.0) -> Record:
+    """Self-collision at one input [deg], whichever assembly mode exists, as a record.
+
+    Keys: ``theta_deg``, ``reachable`` (a home-mode assembly exists), ``mode`` (the
+    assembly mode checked, null when no assembly exists and only the proximal links
+    were checked), ``home``, ``checked``, ``collision``, ``pairs`` (colliding link
+    pairs, lists of two names), ``min_distance_m`` and its ``min_distance_pair``,
+    ``margin_m``, ``fixed_clearance_m`` and ``distances`` (every checked pair).
+    """
+    from .collision import check_input
+    from .model.robot import build_robot
+
+    robot = build_robot(design)
+    report = check_input(np.radians(np.asarray(theta_deg, dtype=float)), robot, margin=margin_m)
+    nearest = min(report.distances, key=lambda pair: report.distances[pair])
+    if report.mode is None:
+        checked = "proximal links only (no real assembly mode: the other links have no pose)"
+    elif report.home:
+        checked = "every link pair (home assembly mode)"
+    else:
+        checked = f"every link pair (assembly mode {report.mode}; the home mode does not exist)"
+    return {
+        "design": design.name,
+        "theta_deg": list(theta_deg),
+        "reachable": report.reachable,
+        "mode": report.mode,
+        "home": report.home,
+        "checked": checked,
+        "collision": report.collision,
+        "pairs": [list(pair) for pair in report.pairs],
+        "min_distance_m": report.min_distance,
+        "min_distance_pair": list(nearest),
+        "margin_m": report.margin,
+        "fixed_clearance_m": robot.collision_checker.fixed_clearance,
+        "distances": [
+            {"pair": list(pair), "distance_m": distance}
+            for pair, distance in report.distances.items()
+        ],
+    }
+
+
+def _run_collide(args: argparse.Namespace) -> int:
+    design = _design(args)
+    record = collide_record([args.T1, args.T2, args.T3], design, args.margin_mm * 1e-3)
+    if not args.json:
+        distances = record.pop("distances")
+        record["pairs"] = ["-".join(pair) for pair in record["pairs"]] or None
+        record["min_distance_pair"] = "-".join(record["min_distance_pair"])
+        record["distances_m"] = {"-".join(d["pair"]): d["distance_m"] for d in distances}
+        if record["pairs"] is None:
+            record["pairs"] = "none"
+    _emit(record, args.json)
+    return 0
+
+
+def _run_workspace(args: argparse.Namespace) -> int:
+    from .workspace import WorkspaceSettings, workspace_map
+
+    design = _design(args)
+    settings = WorkspaceSettings(
+        margin=args.margin_mm * 1e-3,
+        min_dexterity=args.min_dexterity,
+        clearance=not args.no_clearance,
+    )
+    progress = not args.quiet and sys.stderr.isatty()
+    result = workspace_map(
+        design,
+        step_deg=args.step,
+        gap_range_deg=(args.range[0], args.range[1]),
+        samples=args.samples,
+        seed=args.seed,
+        settings=settings,
+        workers=args.workers,
+        progress=progress,
+    )
+    written = result.save(args.out, plots=not args.no_plots)
+    record: Record = {
+        "design": design.name,
+        "step_deg": result.step_deg,
+        "samples": args.samples,
+        "seed": result.seed,
+        **result.summary(),
+        "out": str(args.out),
+        "files": [str(path) for path in written.values()],
+    }
+    _emit(record, args.json)
+    return 0
+
+
+def _add_collision_parsers(commands: Any) -> None:
+    """``spm collide`` and ``spm workspace``."""
+    collide = commands.add_parser(
+        "collide",
+        help="self-collision of the links at input angles",
+        description="Which link pairs collide at input angles T1 T2 T3 [deg], and the "
+        "distance of every checked pair. Checks the home assembly mode; where it does not "
+        "exist, the real assembly mode nearest to it (named in the output); with no real "
+        "assembly at all, the proximal links, which theta alone places.",
+    )
+    for i in (1, 2, 3):
+        collide.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+    collide.add_argument(
+        "--margin-mm",
+        type=_number,
+        default=0.0,
+        metavar="MM",
+        help="safety margin [mm]: links nearer than this count as colliding (default 0; "
+        "the prototype's drive tubes are 1 mm apart everywhere)",
+    )
+    _add_json_option(collide)
+    _add_design_option(collide)
+    collide.set_defaults(run=_run_collide)
+
+    workspace = commands.add_parser(
+        "workspace",
+        help="maps of the workspace over the gaps between the proximal links",
+        description="Reachability, type I/II singularities, dexterity, self-collision, "
+        "clearance and the safe set over the gaps D12, D23 between the proximal links, "
+        "and the orientation workspace (tilt, torsion). Writes workspace.npz, "
+        "workspace.csv, summary.json and PNG plots to --out.",
+    )
+    points = workspace.add_mutually_exclusive_group()
+    points.add_argument(
+        "--step", type=_number, default=2.0, metavar="DEG", help="grid step [deg] (default 2)"
+    )
+    points.add_argument(
+        "--samples", type=int, metavar="N", help="N random points instead of a grid (see --seed)"
+    )
+    workspace.add_argument(
+        "--seed", type=int, default=0, metavar="S", help="seed of --samples (default 0)"
+    )
+    workspace.add_argument(
+        "--range",
+        type=_number,
+        nargs=2,
+        default=(0.0, 360.0),
+        metavar=("LOW", "HIGH"),
+        help="range of every gap [deg] (default 0 360)",
+    )
+    workspace.add_argument(
+        "--margin-mm",
+        type=_number,
+        default=0.0,
+        metavar="MM",
+        help="safety margin of the safe set [mm] (default 0)",
+    )
+    workspace.add_argument(
+        "--min-dexterity",
+        type=_number,
+        default=0.2,
+        metavar="X",
+        help="smallest dexterity 1/kappa(J) of the safe set (default 0.2)",
+    )
+    workspace.add_argument(
+        "--no-clearance", action="store_true", help="skip the clearance field (faster)"
+    )
+    workspace.add_argument(
+        "--workers", type=int, default=1, metavar="N", help="worker processes (default 1)"
+    )
+    workspace.add_argument(
+        "--out", metavar="DIR", default="workspace", help="output folder (default ./workspace)"
+    )
+    workspace.add_argument("--no-plots", action="store_true", help="write no PNG plots")
+    workspace.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_json_option(workspace)
+    _add_design_option(workspace)
+    workspace.set_defaults(run=_run_workspace)
+
+
 # ---------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``spm`` (errors raise instead of exiting)."""
@@ -681,7 +1417,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--solver",
         choices=sorted(FK_SOLVERS),
         default="analytic",
-        help="solver of the home assembly mode (default: analytic; --all is always analytic)",
+        help="analytic (default, the home assembly mode) or projection (Newton projection "
+        "on the Pinocchio model from home); --all is always analytic",
     )
     _add_json_option(fk)
     _add_design_option(fk)
@@ -760,11 +1497,94 @@ def build_parser() -> argparse.ArgumentParser:
     _add_json_option(export)
     _add_design_option(export)
     export.set_defaults(run=_run_export)
+
+    show = commands.add_parser(
+        "show",
+        help="show the robot at input angles (live viewer or HTML file)",
+        description="Show the robot at input angles T1 T2 T3 [deg] with meshcat, colliding "
+        "links in black: in a live viewer (open the printed url; Ctrl-C stops it) or, with "
+        "--html, in a self-contained HTML file. Needs the viz extra.",
+    )
+    for i in (1, 2, 3):
+        show.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+    show.add_argument("--html", metavar="FILE", help="write the scene to FILE instead of serving")
+    show.add_argument(
+        "--mode",
+        default="home",
+        metavar="LABEL",
+        help="assembly mode: home (default) or a label of 'spm fk --all' such as +-+/+",
+    )
+    _add_view_options(show)
+    _add_json_option(show)
+    _add_design_option(show)
+    show.set_defaults(run=_run_show)
+
+    animate = commands.add_parser(
+        "animate",
+        help="write an animation of a motion between input angles to an HTML file",
+        description="Animate the straight motion in input space from --from (default home) "
+        "to --to [deg], followed continuously from the home assembly mode, colliding links "
+        "in black, into a self-contained HTML file. Needs the viz extra.",
+    )
+    animate.add_argument(
+        "--from",
+        dest="from_deg",
+        nargs=3,
+        type=_number,
+        default=[0.0, 0.0, 0.0],
+        metavar=("T1", "T2", "T3"),
+        help="input angles at the start [deg] (default: 0 0 0)",
+    )
+    animate.add_argument(
+        "--to",
+        dest="to_deg",
+        nargs=3,
+        type=_number,
+        required=True,
+        metavar=("T1", "T2", "T3"),
+        help="input angles at the end [deg]",
+    )
+    animate.add_argument(
+        "--samples",
+        type=int,
+        default=DEMO_SAMPLES,
+        metavar="N",
+        help=f"samples of the motion, ends included (default: {DEMO_SAMPLES})",
+    )
+    animate.add_argument(
+        "--duration",
+        type=_number,
+        default=2.0,
+        metavar="S",
+        help="duration of the animation [s] (default: 2)",
+    )
+    animate.add_argument("--html", metavar="FILE", required=True, help="the HTML file to write")
+    _add_view_options(animate)
+    _add_json_option(animate)
+    _add_design_option(animate)
+    animate.set_defaults(run=_run_animate)
+
+    _add_calibration_parsers(commands)
+    _add_torques_parser(commands)
+    _add_collision_parsers(commands)
+
+    # spm servo ...: defined with the hardware layer (its SDK is imported only when run).
+    from .hardware._cli import add_servo_parser
+
+    add_servo_parser(commands)
     return parser
 
 
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> list[str]:
+    """The names of the parser's subcommands."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return list(action.choices)
+    return []
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -773,9 +1593,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parser.parse_args(None if argv is None else list(argv))
         if args.command is None:
-            raise _UsageError(
-                "a command is required: fk, ik, design, export or demo (see spm --help)"
-            )
+            commands = ", ".join(sorted(_subcommands(parser)))
+            raise _UsageError(f"a command is required: one of {commands} (see spm --help)")
         status: int = args.run(args)
         return status
     except SystemExit as exc:  # --help and --version

@@ -11,13 +11,18 @@ from __future__ import annotations
 from typing import Any
 
 __all__ = [
+    "CommunicationError",
     "ConvergenceError",
     "DesignError",
     "FileFormatError",
+    "HardwareError",
     "InputError",
     "SPMError",
+    "ServoAlertError",
+    "ServoError",
     "SingularityError",
     "UnreachableError",
+    "UnsafeCommandError",
 ]
 
 
@@ -102,3 +107,99 @@ class ConvergenceError(SPMError, RuntimeError):
     def __init__(self, message: str, *, data: dict[str, Any] | None = None) -> None:
         super().__init__(message)
         self.data = data or {}
+
+
+class HardwareError(SPMError, RuntimeError):
+    """The servo bus or a servo failed (port, model, reply, alert).
+
+    Attributes:
+        servo_id: The servo to blame, when one is (None for the whole bus).
+        operation: What was being done, e.g. ``"sync read"`` or ``"write Goal Position"``.
+    """
+
+    def __init__(
+        self, message: str, *, servo_id: int | None = None, operation: str | None = None
+    ) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+        self.operation = operation
+
+
+class CommunicationError(HardwareError):
+    """No valid status packet after the bounded retries (silent, unplugged, garbled).
+
+    Attributes:
+        result: The last dynamixel-sdk result code (e.g. -3001, no status packet), or
+            None when the port itself failed.
+        servo_ids: Every servo that did not answer, when known.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        servo_id: int | None = None,
+        operation: str | None = None,
+        result: int | None = None,
+        servo_ids: tuple[int, ...] = (),
+    ) -> None:
+        super().__init__(message, servo_id=servo_id, operation=operation)
+        self.result = result
+        self.servo_ids = servo_ids or ((servo_id,) if servo_id is not None else ())
+
+
+class ServoError(HardwareError):
+    """A servo answered with an instruction error (the low 7 bits of the error byte).
+
+    Attributes:
+        error: The error number (1 result fail, 2 instruction, 3 CRC, 4 data range,
+            5 data length, 6 data limit, 7 access).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        servo_id: int | None = None,
+        operation: str | None = None,
+        error: int = 0,
+    ) -> None:
+        super().__init__(message, servo_id=servo_id, operation=operation)
+        self.error = error
+
+
+class ServoAlertError(HardwareError):
+    """A servo reports a hardware error (alert bit) that the reboot policy cannot clear.
+
+    Attributes:
+        status: The Hardware Error Status bits, by servo id.
+    """
+
+    def __init__(
+        self, message: str, *, servo_id: int | None = None, status: dict[int, int] | None = None
+    ) -> None:
+        super().__init__(message, servo_id=servo_id, operation="hardware error status")
+        self.status = dict(status or {})
+
+
+class UnsafeCommandError(SPMError, ValueError):
+    """A goal that the safety guard refused; nothing was sent to the servos.
+
+    Attributes:
+        reasons: Why, one sentence each (unreachable, singular, colliding, limits).
+        goal: The refused input angles [rad] (a path: the first unsafe sample).
+        index: Index of the first unsafe sample of a path (None for a single goal).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        reasons: tuple[str, ...] = (),
+        goal: Any = None,
+        index: int | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.reasons = reasons
+        self.goal = goal
+        self.index = index

@@ -133,3 +133,158 @@ def test_common_statistics_and_json(tmp_path: Path) -> None:
     assert len(timed.timing.samples) == 3
     out = _common.write_json(tmp_path / "sub" / "x.json", {"a": np.float64(np.nan), "b": (1, 2)})
     assert json.loads(out.read_text()) == {"a": None, "b": [1, 2]}
+
+
+def test_quick_calibration_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchmarks import bench_calibration
+
+    out = tmp_path / "c.json"
+    assert bench_calibration.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "calibration"
+    assert data["config"]["quick"] is True
+    assert set(data["results"]) == {"analytic", "analytic_12", "parse"}
+    for name in ("analytic", "analytic_12"):
+        entry = data["results"][name]
+        assert set(entry) >= TIMING_KEYS - {"n"}, name
+        assert entry["p95_s"] >= entry["median_s"] > 0, name
+    analytic = data["results"]["analytic"]
+    assert analytic["readings"] == 100
+    assert analytic["identified"] == analytic["parameters"] >= 7
+    assert analytic["ok"] is True
+    assert data["results"]["analytic_12"]["unidentified"] == ["ref_z"]
+    peer = data["peer"]
+    assert peer["identified"] == analytic["identified"]
+    assert peer["max_estimate_difference_deg"] < 1e-4  # same answer, other Jacobian
+    assert peer["speed_ratio_ours_vs_peer"] > 0
+    assert data["accuracy"]["max_abs_z"] < 5.0
+    assert set(data["targets"]) == {"identification_seconds", "parameters_identified", "all_pass"}
+
+
+def test_quick_closure_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchmarks import bench_closure
+
+    out = tmp_path / "closure.json"
+    assert bench_closure.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "closure"
+    assert data["config"]["quick"] is True
+    assert {"pin", "numpy", "scipy"} <= set(data["machine"]["packages"])
+    cases = {"warm_1deg", "warm_servo", "warm_1deg_array", "cold", "follow_study"}
+    assert set(data["results"]) == cases
+    for name, entry in data["results"].items():
+        assert set(entry) >= TIMING_KEYS, name
+        assert entry["p95_s"] >= entry["median_s"] > 0, name
+        assert entry["max_residual"] <= TOL["residual"], name
+        assert entry["max_error_rad"] <= 1e-10, name  # against the analytic FK
+    warm = data["results"]["warm_1deg"]
+    assert warm["max_step_deg"] <= 1.0 + 1e-9
+    assert set(warm["iterations_histogram"]) <= {"1", "2"}  # the predictor's work
+    assert data["results"]["warm_servo"]["max_step_deg"] <= 0.33
+    cold = data["results"]["cold"]
+    assert cold["agree_fraction"] == cold["solved_fraction"] >= 0.9
+    peer = data["peer"]
+    for name in ("default", "default_tight", "lm_exact_jacobian_tight"):
+        assert peer[name]["n"] == data["config"]["sizes"]["peer"], name
+        assert peer[name]["speed_ratio_peer_over_ours"] > 0, name
+    assert peer["default_tight"]["max_residual"] <= TOL["residual"]  # the same job as ours
+    assert peer["lm_exact_jacobian_tight"]["max_error_rad"] <= 1e-10
+    assert set(data["targets"]) == {
+        "warm_median",
+        "speedup_vs_least_squares",
+        "max_residual",
+        "all_pass",
+    }
+    assert data["targets"]["max_residual"]["pass"] is True
+
+
+@pytest.mark.hardware
+def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("dynamixel_sdk")
+    from benchmarks import bench_hardware
+
+    out = tmp_path / "hardware.json"
+    assert bench_hardware.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "hardware" and data["config"]["quick"] is True
+    assert {"dynamixel-sdk", "pin"} <= set(data["machine"]["packages"])
+    results = data["results"]
+    assert set(results) == {"bus", "loop", "loop_with_model", "guard_cold", "wire"}
+    for name in ("sync_read_fast", "sync_read_plain", "sync_write"):
+        assert results["bus"][name]["p95_s"] >= results["bus"][name]["median_s"] > 0, name
+    for name in ("loop", "loop_with_model"):
+        loop = results[name]
+        assert set(loop["stages"]) == {"read", "kinematics", "view", "guard", "write"}
+        assert loop["sent"] == loop["cycles"] + 20 and loop["refused_or_failed"] == 0, name
+        assert loop["cycle"]["median_s"] >= loop["software"]["median_s"] > 0, name
+    assert results["guard_cold"]["safe_fraction"] == 1.0
+    assert results["wire"]["bytes_fast"] < results["wire"]["bytes_plain"]
+    assert set(data["targets"]) == {"software_per_second", "all_pass"}
+
+
+def test_quick_dynamics_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("mujoco")
+    from benchmarks import bench_dynamics
+
+    out = tmp_path / "dynamics.json"
+    assert bench_dynamics.main(["--quick", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "Targets" in printed and ("PASS" in printed or "FAIL" in printed)
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "dynamics" and data["config"]["quick"] is True
+    assert {"numpy", "pin", "mujoco"} <= set(data["machine"]["packages"])
+    results = data["results"]
+    for name in ("euler", "rk4"):
+        for case in ("passive", "servo"):
+            assert f"ours_{name}_{case}" in results
+            assert results[f"ours_{name}_{case}"]["max_closure_residual"] <= 1e-10
+            assert f"mujoco_{name}_{case}" in results
+    assert {"inverse_trajectory", "forward_pinocchio", "forward_nullspace"} <= set(results)
+    for name, entry in results.items():
+        assert entry["per_second"] > 0 and entry["p95_s"] >= entry["median_s"], name
+    accuracy = data["accuracy"]
+    assert accuracy["energy"]["relative_drift"] <= 1e-6
+    stiff = accuracy["mujoco_stiff"]
+    assert stiff["passive_hanging"]["max_theta_error_rad"] <= 1e-6
+    assert stiff["driven"]["max_theta_error_rad"] <= 1e-6
+    assert set(data["targets"]) == {
+        "steps_per_second",
+        "closure_drift",
+        "energy_drift",
+        "mujoco_theta_agreement",
+        "all_pass",
+    }
+    for name in ("closure_drift", "energy_drift", "mujoco_theta_agreement"):
+        assert data["targets"][name]["pass"] is True, name
+
+
+def test_quick_collision_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchmarks import bench_collision
+
+    out = tmp_path / "collision.json"
+    assert bench_collision.main(["--quick", "--workers", "1", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "Targets" in printed and ("PASS" in printed or "FAIL" in printed)
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "collision" and data["config"]["quick"] is True
+    assert {"numpy", "pin", "coal"} <= set(data["machine"]["packages"])
+    results = data["results"]
+    for name in ("check_random", "check_path", "check_theta", "peer_bvh", "distances"):
+        entry = results[name]
+        assert entry["p95_s"] >= entry["median_s"] > 0, name
+    # Every method names the same colliding pairs, up to contacts at zero distance.
+    for agreement in (
+        results["peer_bvh"]["agreement_with_library"],
+        results["fidelity"]["convex"]["agreement_with_library"],
+        results["fidelity"]["hybrid_no_probes"]["agreement_with_library"],
+    ):
+        assert agreement["different"] == 0, agreement
+        assert agreement["same"] > 0
+    assert results["fidelity"]["pieces"] > 100
+    assert results["map"]["same_result_parallel_and_single"] is True
+    assert 0.0 < results["map"]["reachable_fraction"] < 1.0
+    assert data["peer"]["speed_ratio_ours_vs_peer"] > 0
+    assert set(data["targets"]) == {"check_median", "all_pass"}  # no map target at 15 deg

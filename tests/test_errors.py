@@ -35,6 +35,11 @@ VALID_TOML = "[kinematics]\nalpha1_deg = 45\nalpha2_deg = 90\nbeta_deg = 90\n"
         (spm.UnreachableError, ValueError),
         (spm.SingularityError, ValueError),
         (spm.ConvergenceError, RuntimeError),
+        (spm.HardwareError, RuntimeError),
+        (spm.CommunicationError, RuntimeError),
+        (spm.ServoError, RuntimeError),
+        (spm.ServoAlertError, RuntimeError),
+        (spm.UnsafeCommandError, ValueError),
     ],
 )
 def test_every_error_is_an_spm_error_and_a_builtin(error: type, builtin: type) -> None:

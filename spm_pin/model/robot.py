@@ -29,6 +29,8 @@ constraint residuals.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import coal
 import numpy as np
 import numpy.typing as npt
@@ -39,6 +41,9 @@ from ..errors import ConvergenceError, InputError, UnreachableError
 from ..kinematics import forward_kinematics, forward_kinematics_all
 from ..kinematics._common import as_rotation, as_theta, check_design
 from .geometry import LINK_NAMES, LinkInertia, link_inertias, link_meshes
+
+if TYPE_CHECKING:
+    from ..collision import CollisionChecker
 
 __all__ = [
     "ACTUATED_JOINTS",
@@ -518,6 +523,60 @@ class SPMRobot:
         pin.framesForwardKinematics(self.model, self._data, array)
         names = (*LINK_NAMES, *END_BODIES[1:])
         return {name: pin.SE3(self._data.oMf[self._frame_id(name)]) for name in names}
+
+    # ------------------------------------------------------------------ collision
+    @property
+    def collision_checker(self) -> CollisionChecker:
+        """The self-collision checker of this robot, made on first use and kept.
+
+        A :class:`spm_pin.collision.CollisionChecker`; not thread-safe: threads make
+        their own with ``CollisionChecker(robot)``.
+        """
+        checker: CollisionChecker | None = self.__dict__.get("_collision_checker")
+        if checker is None:
+            from ..collision import CollisionChecker
+
+            checker = CollisionChecker(self)
+            self.__dict__["_collision_checker"] = checker
+        return checker
+
+    def collisions(self, x: npt.ArrayLike, *, margin: float = 0.0) -> list[tuple[str, str]]:
+        """The link pairs that collide, or come nearer than ``margin``, at x.
+
+        Every link against every other except the pairs that share a joint, on the
+        real link shapes (see :mod:`spm_pin.collision`).
+
+        Args:
+            x: Input angles theta (3,) [rad] (home assembly mode) or a joint
+                configuration q (9,) [rad].
+            margin: Safety margin [m], >= 0; keep it below about 1 mm for the
+                prototype, whose nested drive tubes are 1 mm apart everywhere.
+
+        Returns:
+            Colliding link pairs, e.g. ``[("proximal_2", "proximal_3")]``; empty if
+            none.
+
+        Raises:
+            InputError: bad ``x`` or ``margin``.
+            UnreachableError: theta without a home-mode assembly.
+        """
+        return self.collision_checker.collisions(x, margin=margin)
+
+    def distances(self, x: npt.ArrayLike) -> dict[tuple[str, str], float]:
+        """Distance of every checked link pair at x [m] (negative where they overlap).
+
+        Args:
+            x: Input angles theta (3,) [rad] (home mode) or a joint configuration q (9,).
+        """
+        return self.collision_checker.distances(x)
+
+    def min_clearance(self, x: npt.ArrayLike) -> float:
+        """Smallest distance between two checked links at x [m] (negative on overlap).
+
+        Args:
+            x: Input angles theta (3,) [rad] (home mode) or a joint configuration q (9,).
+        """
+        return self.collision_checker.min_clearance(x)
 
     def _frame_id(self, link: str) -> int:
         if link in self.link_frames:

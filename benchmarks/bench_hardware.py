@@ -1,0 +1,366 @@
+"""Hardware benchmark: the model-servo sync loop against the emulated XM540-W150 bus.
+
+Run from the repository root::
+
+    python -m benchmarks.bench_hardware [--out FILE.json] [--quick]
+
+It prints a table and writes JSON (default ``benchmarks/results/hardware.json``).
+
+The emulated bus runs in its own process on a pseudo-terminal and the unmodified
+dynamixel-sdk talks to it, as to a U2D2 adapter, so the bus stages include the SDK and
+the terminal but not the wire. What is measured:
+
+1. ``bus``: one sync read of the state block of 3 servos (fast and plain) and one sync
+   write of 3 goal positions, per call.
+2. ``loop``: :meth:`ServoSync.step` streaming a pre-checked path (home to the study's
+   input [60, 90, 120] deg and back) as fast as it goes, with the time of each stage:
+   read (sync read), kinematics (home-mode FK; with the model update also the closed
+   configuration q), guard (the checks of the goal: static ones cached by the path
+   check, speed and acceleration every cycle), write (sync write). Twice: without and
+   with the model update.
+3. ``guard``: the static checks of goals not seen before (FK, Jacobian, collisions),
+   one goal per call, and the whole-path check per sample.
+4. ``wire``: the bytes one cycle puts on a real 1 Mbps bus (10 bits a byte, Return
+   Delay Time 0), to add to the loop time on real hardware.
+5. ``targets``: the software part of a cycle (kinematics + guard, no model update) at
+   >= 500 Hz.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ._common import limit_to_one_thread
+
+#: Whether the one-thread limit was set before numpy was imported.
+THREADS_LIMITED = limit_to_one_thread()
+
+import numpy as np  # noqa: E402
+
+import spm_pin as spm  # noqa: E402
+from spm_pin.hardware import (  # noqa: E402
+    EmulatedBus,
+    HardwareConfig,
+    SafetyGuard,
+    SafetyLimits,
+    ServoBus,
+    ServoSettings,
+    ServoSync,
+    plan_linear,
+)
+from spm_pin.hardware.driver import STATE_BLOCK  # noqa: E402
+
+from ._common import (  # noqa: E402
+    Timing,
+    default_output,
+    format_count,
+    format_rate,
+    format_seconds,
+    format_table,
+    machine_info,
+    target,
+    time_each,
+    write_json,
+)
+
+#: The study's demonstration input [deg].
+DEMO_DEG = (60.0, 90.0, 120.0)
+#: The issue's target for the software part of a cycle [Hz].
+TARGET_SOFTWARE_RATE = 500.0
+#: Loop rate the streamed path is planned for [Hz] (faster than the loop runs, so the
+#: commanded speed stays below the guard's limit).
+PLAN_RATE_HZ = 1000.0
+#: Seed of the random goals of the guard section.
+SEED = 20_260_811
+#: Line rate of the wire-time estimate [bit/s] and bits per byte (start, 8, stop).
+WIRE_BAUD = 1_000_000
+BITS_PER_BYTE = 10
+
+#: Sizes: bus calls, loop cycles, cold guard checks, and the fraction of the way to
+#: the demonstration input that the streamed path goes (quick: a short path, so that
+#: checking it whole before the first command stays short).
+SIZES: dict[str, dict[str, float]] = {
+    "full": {"bus": 1000, "cycles": 2000, "guard": 300, "reach": 1.0},
+    "quick": {"bus": 60, "cycles": 150, "guard": 20, "reach": 0.05},
+}
+
+
+def _config(port: str) -> HardwareConfig:
+    return HardwareConfig(
+        port=port,
+        rate_hz=PLAN_RATE_HZ,
+        servo=ServoSettings(profile_velocity=4.0, profile_acceleration=40.0),
+        safety=SafetyLimits(max_speed=2.0, max_acceleration=10.0),
+    )
+
+
+def bench_bus(bus: ServoBus, n: int) -> dict[str, Any]:
+    """Sync read (fast and plain) and sync write, one call per sample."""
+    results: dict[str, Any] = {}
+    for name, fast in (("sync_read_fast", True), ("sync_read_plain", False)):
+        bus.fast_sync_read = fast
+        timing, _ = time_each(lambda _: bus.sync_read(), list(range(n)), warmup=5)
+        results[name] = {**timing.summary(), "n": n}
+    bus.fast_sync_read = True
+    goals = bus.sync_read().goal
+    targets = dict(zip(bus.ids, goals, strict=True))
+    timing, _ = time_each(lambda _: bus.sync_write_goals(targets), list(range(n)), warmup=5)
+    results["sync_write"] = {**timing.summary(), "n": n}
+    return results
+
+
+def _stage_summary(samples: list[dict[str, float]], total: list[float]) -> dict[str, Any]:
+    stages = {}
+    for stage in ("read", "kinematics", "view", "guard", "write"):
+        values = [s[stage] for s in samples]
+        stages[stage] = Timing(tuple(values)).summary()
+    software = [s["kinematics"] + s["guard"] for s in samples]
+    return {
+        "cycles": len(samples),
+        "stages": stages,
+        "software": Timing(tuple(software)).summary(),
+        "cycle": Timing(tuple(total)).summary(),
+    }
+
+
+def bench_loop(
+    bus: ServoBus,
+    emulated: EmulatedBus,
+    guard: SafetyGuard,
+    cycles: int,
+    reach: float,
+    *,
+    update_model: bool,
+) -> dict[str, Any]:
+    """Stream a pre-checked path through ServoSync.step; time every stage."""
+    config = _config(emulated.port)
+    robot = guard.robot
+    sync = ServoSync(bus, config, robot=robot, guard=guard, update_model=update_model)
+    emulated.reset()
+    try:
+        sync.start()
+        limits = config.safety
+        out = plan_linear(
+            sync.goal,  # type: ignore[arg-type]
+            reach * np.radians(DEMO_DEG),
+            max_speed=limits.max_speed,
+            max_acceleration=limits.max_acceleration,
+            period=config.period,
+        )
+        back = plan_linear(
+            out[-1],
+            np.zeros(3),
+            max_speed=limits.max_speed,
+            max_acceleration=limits.max_acceleration,
+            period=config.period,
+        )
+        path = np.vstack([out, back])
+        check_start = time.perf_counter()
+        guard.check_path(path, period=config.period, start=sync.goal).require()
+        check_time = time.perf_counter() - check_start
+        samples: list[dict[str, float]] = []
+        totals: list[float] = []
+        sent = 0
+        for k in range(cycles + 20):
+            goal = path[k % len(path)]  # home -> demo -> home, again and again
+            start = time.perf_counter()
+            result = sync.step(goal)
+            elapsed = time.perf_counter() - start
+            if not result.sent:
+                continue
+            sent += 1
+            if k >= 20:  # warm-up cycles
+                samples.append(result.timings)
+                totals.append(elapsed)
+        summary = _stage_summary(samples, totals)
+        summary["path_samples"] = len(path)
+        summary["path_check_s"] = check_time
+        summary["path_check_per_sample_s"] = check_time / len(path)
+        summary["sent"] = sent
+        summary["refused_or_failed"] = cycles + 20 - sent
+        summary["update_model"] = update_model
+        return summary
+    finally:
+        sync.release()
+
+
+def bench_guard(robot: spm.SPMRobot, n: int) -> dict[str, Any]:
+    """Static checks of goals never seen before, one per call."""
+    rng = np.random.default_rng(SEED)
+    guard = SafetyGuard(robot)
+    goals = list(
+        np.radians(DEMO_DEG) * rng.uniform(0.0, 1.0, size=(n, 1)) + rng.normal(0, 0.01, (n, 3))
+    )
+    timing, verdicts = time_each(guard.check, goals, warmup=0)
+    return {
+        **timing.summary(),
+        "n": n,
+        "safe_fraction": float(np.mean([v.safe for v in verdicts])),
+        "computed": int(guard.stats["computed"]),
+    }
+
+
+def wire_estimate() -> dict[str, Any]:
+    """Bytes of one cycle on a real bus and their time at WIRE_BAUD."""
+    n = 3
+    length = STATE_BLOCK[1]
+    sync_read_instruction = 14 + n  # header .. CRC with the id list
+    fast_reply = 11 + n * (length + 4) - 2 + 1  # one status packet, a segment per servo
+    plain_replies = n * (11 + length)
+    sync_write = 14 + n * 5
+    byte_time = BITS_PER_BYTE / WIRE_BAUD
+    fast = sync_read_instruction + fast_reply + sync_write
+    plain = sync_read_instruction + plain_replies + sync_write
+    return {
+        "baud": WIRE_BAUD,
+        "bytes_fast": fast,
+        "bytes_plain": plain,
+        "seconds_fast": fast * byte_time,
+        "seconds_plain": plain * byte_time,
+    }
+
+
+def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
+    """Run every section and return the JSON payload."""
+    robot = spm.build_robot()
+    cycles, reach = int(sizes["cycles"]), float(sizes["reach"])
+    with EmulatedBus((1, 2, 3)) as emulated, ServoBus(emulated.port, (1, 2, 3)) as bus:
+        config = _config(emulated.port)
+        guard = SafetyGuard(robot, config.safety)  # shared: the second path check is cached
+        bus.identify()
+        bus.configure(config.servo)
+        results: dict[str, Any] = {"bus": bench_bus(bus, int(sizes["bus"]))}
+        results["loop"] = bench_loop(bus, emulated, guard, cycles, reach, update_model=False)
+        results["loop_with_model"] = bench_loop(
+            bus, emulated, guard, cycles, reach, update_model=True
+        )
+    results["guard_cold"] = bench_guard(robot, int(sizes["guard"]))
+    results["wire"] = wire_estimate()
+    software = results["loop"]["software"]["per_second"]
+    return {
+        "benchmark": "hardware",
+        "machine": machine_info(
+            ("numpy", "pin", "coal", "dynamixel-sdk"), {"spm_pin": spm.__version__}
+        ),
+        "config": {
+            "quick": quick,
+            "sizes": sizes,
+            "plan_rate_hz": PLAN_RATE_HZ,
+            "threads_limited_before_numpy": THREADS_LIMITED,
+            "timing": "perf_counter per call or per cycle after warm-up; median/p95/p99",
+        },
+        "results": results,
+        "targets": {
+            "software_per_second": target(software, TARGET_SOFTWARE_RATE, at_least=True, unit="Hz"),
+            "all_pass": software >= TARGET_SOFTWARE_RATE,
+        },
+    }
+
+
+def report(payload: dict[str, Any]) -> str:
+    """The printed summary."""
+    results = payload["results"]
+    rows = []
+    for key, label in (
+        ("sync_read_fast", "sync read, fast (3 servos)"),
+        ("sync_read_plain", "sync read, plain (3 servos)"),
+        ("sync_write", "sync write (3 goals)"),
+    ):
+        r = results["bus"][key]
+        rows.append(
+            [
+                label,
+                format_count(r["n"]),
+                format_seconds(r["median_s"]),
+                format_seconds(r["p95_s"]),
+                format_rate(r["per_second"]),
+            ]
+        )
+    for key, label in (("loop", "loop"), ("loop_with_model", "loop + model q")):
+        loop = results[key]
+        for stage in ("read", "kinematics", "guard", "write"):
+            r = loop["stages"][stage]
+            rows.append(
+                [
+                    f"{label}: {stage}",
+                    format_count(loop["cycles"]),
+                    format_seconds(r["median_s"]),
+                    format_seconds(r["p95_s"]),
+                    "",
+                ]
+            )
+        for part in ("software", "cycle"):
+            r = loop[part]
+            rows.append(
+                [
+                    f"{label}: {part}",
+                    format_count(loop["cycles"]),
+                    format_seconds(r["median_s"]),
+                    format_seconds(r["p95_s"]),
+                    format_rate(r["per_second"]),
+                ]
+            )
+    guard = results["guard_cold"]
+    rows.append(
+        [
+            "guard, goal not seen before",
+            format_count(guard["n"]),
+            format_seconds(guard["median_s"]),
+            format_seconds(guard["p95_s"]),
+            format_rate(guard["per_second"]),
+        ]
+    )
+    table = format_table(["case", "n", "median", "p95", "rate"], rows)
+    wire = results["wire"]
+    loop = results["loop"]
+    notes = (
+        f"Path check before the first command: {loop['path_samples']} samples in "
+        f"{format_seconds(loop['path_check_s'])} "
+        f"({format_seconds(loop['path_check_per_sample_s'])} per sample).\n"
+        f"On a real bus at {wire['baud']:,} bit/s add the wire time: {wire['bytes_fast']} "
+        f"bytes per cycle with fast sync read ({format_seconds(wire['seconds_fast'])}), "
+        f"{wire['bytes_plain']} plain ({format_seconds(wire['seconds_plain'])})."
+    )
+    t = payload["targets"]["software_per_second"]
+    status = "PASS" if t["pass"] else "FAIL"
+    lines = (
+        f"Targets\n  {status}  software part of a cycle (kinematics + guard): "
+        f"{format_rate(t['value'])} (>= {format_rate(t['threshold'])})"
+    )
+    head = "spm-pin hardware benchmark: ServoSync against the emulated XM540-W150 bus"
+    return "\n\n".join([head, table, notes, lines])
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    """Command-line options."""
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.bench_hardware",
+        description="Rate and stage times of the model-servo sync loop on the emulated bus.",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=default_output("hardware"),
+        help="JSON output file (default: benchmarks/results/hardware.json)",
+    )
+    parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
+    return parser.parse_args(argv)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark, print the summary, write the JSON; returns the exit code."""
+    args = parse_args(argv)
+    payload = run(SIZES["quick" if args.quick else "full"], quick=args.quick)
+    print(report(payload))
+    out = write_json(args.out, payload)
+    print(f"\nJSON written to {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,83 @@
+"""The prototype at home, at the study's input and at its colliding input, as HTML scenes.
+
+Writes home.html, demo.html, colliding.html and motion.html (the motion from home to
+theta = [60, 90, 120] deg, 25 samples) into --out DIR (without it, into a temporary
+directory that is removed at the end) and prints the colliding links. With --png DIR
+it also renders the pictures of the documentation (needs Playwright and a Chromium):
+
+    python examples/visualize.py --png docs/images
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import spm_pin as spm
+from spm_pin.viz import Visualizer
+
+DEMO_DEG = [60.0, 90.0, 120.0]  # the study's demonstration input
+COLLIDING_DEG = [60.0, 90.0, 220.0]  # the study's colliding input
+PICTURE_SIZE = (640, 480)  # [px]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, help="directory for the HTML files")
+    parser.add_argument("--png", type=Path, metavar="DIR", help="also write PNG pictures to DIR")
+    args = parser.parse_args()
+    if args.out is None:
+        with tempfile.TemporaryDirectory(prefix="spm-visualize-") as scratch:
+            write(Path(scratch), args.png)
+    else:
+        args.out.mkdir(parents=True, exist_ok=True)
+        write(args.out, args.png)
+
+
+def write(out: Path, png: Path | None) -> None:
+    """Write the scenes into ``out`` and, with ``png``, their pictures into ``png``."""
+    robot = spm.build_robot()
+    scenes: dict[str, Path] = {}
+
+    viz = Visualizer(robot)
+    scenes["home"] = viz.save_html(out / "home.html")
+
+    viz = Visualizer(robot, joint_axes=True, platform_frame=True)
+    viz.display(np.radians(DEMO_DEG))
+    scenes["demo"] = viz.save_html(out / "demo.html")
+
+    # The colliding input has no home-mode assembly: show its first real assembly mode.
+    theta = np.radians(COLLIDING_DEG)
+    label = spm.forward_kinematics_all(theta).labels[0]
+    viz = Visualizer(robot)
+    pairs = viz.display(theta, mode=label)
+    scenes["colliding"] = viz.save_html(out / "colliding.html")
+    print(f"theta = {COLLIDING_DEG} deg, assembly mode {label}: colliding links")
+    for a, b in pairs:
+        print(f"  {a} - {b}")
+
+    viz = Visualizer(robot)
+    path = np.linspace(0.0, 1.0, 25)[:, None] * np.radians(DEMO_DEG)
+    motion = viz.animate(path, dt=0.08)
+    scenes["motion"] = viz.save_html(out / "motion.html")
+    print(f"motion: {len(motion.times)} samples, colliding at {motion.colliding_samples}")
+
+    for name, path_html in scenes.items():
+        print(f"wrote {name}: {path_html} ({path_html.stat().st_size / 1e6:.2f} MB)")
+
+    if png is not None:
+        from spm_pin.viz.browser import chromium, screenshot
+
+        png.mkdir(parents=True, exist_ok=True)
+        with chromium() as browser:
+            for name in ("home", "demo", "colliding"):
+                picture = png / f"spm_{name}.png"
+                screenshot(scenes[name], picture, size=PICTURE_SIZE, browser=browser)
+                print(f"wrote {picture}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,709 @@
+r"""The SPM in meshcat: poses, colliding links in black, joint axes, animations, HTML.
+
+Scene layout (meshcat paths; the world frame is z-up, O at the origin):
+
+* ``/meshcat/spm/links/<link>``: one node per link (:data:`LINK_NAMES`), its
+  transform the link's world placement from Pinocchio. Each has two children with
+  the link mesh: ``free`` in the link's colour and ``colliding`` in black; exactly
+  one of them is visible.
+* ``/meshcat/spm/overlays/joint_axes/<u_i|w_i|v_i>``: arrows from O along the
+  joint axes u_i, w_i, v_i (hidden unless asked for).
+* ``/meshcat/spm/overlays/platform_frame``: the platform frame's x, y, z axes
+  (red, green, blue; hidden unless asked for).
+
+The default camera looks at O from the front, a little above, and is zoomed so the
+robot fills most of the view; it orbits about O. meshcat 0.3.2's camera helpers are
+broken, so the camera is set through its ``position``, ``zoom`` and ``view`` (a
+vertical lens shift that centres the robot, whose base reaches far below O)
+properties.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import meshcat.geometry as mg
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ..errors import InputError, UnreachableError
+from ..kinematics import track
+from ..model.geometry import LINK_NAMES, link_meshes
+from ..model.robot import SPMRobot, build_robot
+from ._scene import Scene
+from .server import MeshcatServer, ViewerError
+
+__all__ = [
+    "COLLIDING_COLOR",
+    "JOINT_AXIS_COLORS",
+    "LINK_COLORS",
+    "ROOT",
+    "RobotAnimation",
+    "Visualizer",
+    "link_path",
+]
+
+FloatArray = npt.NDArray[np.float64]
+Color = tuple[float, float, float, float]
+LinkPair = tuple[str, str]
+
+#: Scene path of the robot.
+ROOT = "/meshcat/spm"
+
+#: Link colours (RGBA, 0..1): each leg its own hue, the proximal link darker than the
+#: distal one; the base and the platform neutral.
+LINK_COLORS: dict[str, Color] = {
+    "base": (0.50, 0.51, 0.54, 1.0),
+    "proximal_1": (0.00, 0.40, 0.70, 1.0),
+    "distal_1": (0.35, 0.65, 0.90, 1.0),
+    "proximal_2": (0.85, 0.40, 0.00, 1.0),
+    "distal_2": (0.98, 0.65, 0.25, 1.0),
+    "proximal_3": (0.45, 0.20, 0.60, 1.0),
+    "distal_3": (0.70, 0.50, 0.82, 1.0),
+    "platform": (0.86, 0.86, 0.82, 1.0),
+}
+#: Colour of a link that collides with another.
+COLLIDING_COLOR: Color = (0.0, 0.0, 0.0, 1.0)
+#: Colours of the joint-axis arrows, by axis family.
+JOINT_AXIS_COLORS: dict[str, Color] = {
+    "u": (0.20, 0.20, 0.20, 1.0),
+    "w": (0.95, 0.75, 0.05, 1.0),
+    "v": (0.00, 0.65, 0.60, 1.0),
+}
+_FRAME_COLORS: dict[str, Color] = {
+    "x": (0.90, 0.10, 0.10, 1.0),
+    "y": (0.10, 0.75, 0.10, 1.0),
+    "z": (0.10, 0.20, 0.95, 1.0),
+}
+
+#: Default camera direction seen from O: azimuth from +x towards +y and elevation
+#: above the xy plane [rad].
+DEFAULT_AZIMUTH = math.radians(-30.0)
+DEFAULT_ELEVATION = math.radians(20.0)
+_CAMERA_DISTANCE = 1.5  # [m] from O; zoom sets the size
+_CAMERA_FOV = math.radians(75.0)  # meshcat's default camera (vertical field of view)
+_CAMERA = "/Cameras/default/rotated/<object>"
+_MIN_ASPECT = 4.0 / 3.0  # the camera fit assumes a view at least this wide (width / height)
+
+_ARROW_RADIUS = 0.0015  # [m]
+_HEAD_LENGTH = 0.012  # [m]
+_HEAD_RADIUS = 0.004  # [m]
+_GRID_SCALE = 0.05  # meshcat's 20 m grid with 0.5 m cells -> 1 m with 25 mm cells
+
+
+def link_path(link: str) -> str:
+    """Scene path of a link's node, ``/meshcat/spm/links/<link>``."""
+    return f"{ROOT}/links/{link}"
+
+
+def _hex(color: Color) -> int:
+    r, g, b = (round(255 * min(max(c, 0.0), 1.0)) for c in color[:3])
+    return (r << 16) | (g << 8) | b
+
+
+def _material(color: Color) -> mg.MeshPhongMaterial:
+    return mg.MeshPhongMaterial(color=_hex(color), opacity=float(color[3]))
+
+
+def _rotation_y_to(direction: FloatArray) -> FloatArray:
+    """A rotation taking +y (meshcat's cylinder axis) to the unit vector ``direction``."""
+    y = direction / np.linalg.norm(direction)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(y[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    x = np.cross(y, helper)
+    x /= np.linalg.norm(x)
+    z = np.cross(x, y)
+    result: FloatArray = np.stack([x, y, z], axis=1)
+    return result
+
+
+def _transform(rotation: FloatArray, translation: FloatArray) -> FloatArray:
+    T = np.eye(4)
+    T[:3, :3] = rotation
+    T[:3, 3] = translation
+    return T
+
+
+@dataclasses.dataclass(frozen=True)
+class _Arrow:
+    """An overlay arrow: drawn at ``path`` along ``direction`` (at home) from O; it
+    moves with the scene node ``node``, which belongs to the overlay ``overlay``."""
+
+    overlay: str
+    node: str
+    path: str
+    direction: FloatArray
+    length: float
+    color: Color
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotAnimation:
+    """What :meth:`Visualizer.animate` put into the scene.
+
+    Attributes:
+        q: Joint configurations, one per sample, shape (N, 9).
+        times: Time of each sample in the animation [s], shape (N,).
+        collisions: Colliding link pairs at each sample (empty lists when collision
+            checking is off).
+    """
+
+    q: FloatArray
+    times: FloatArray
+    collisions: list[list[LinkPair]]
+
+    @property
+    def colliding_samples(self) -> list[int]:
+        """Indices of the samples where some links collide."""
+        return [k for k, pairs in enumerate(self.collisions) if pairs]
+
+
+class Visualizer:
+    """The SPM drawn with meshcat, live in a browser or as a static HTML file.
+
+    Building a visualizer starts nothing: the scene is kept in Python, so
+    :meth:`save_html` works without any server. :meth:`start` (or a ``with`` block)
+    starts a meshcat server, shows the scene so far and sends every later change;
+    :meth:`stop` (or leaving the block) stops the server and frees its ports.
+
+    Example:
+        >>> import numpy as np
+        >>> from spm_pin.viz import Visualizer
+        >>> viz = Visualizer()
+        >>> viz.display(np.radians([60, 90, 120]))
+        []
+        >>> html = viz.static_html()
+
+    Args:
+        robot: The robot (default: ``spm.build_robot()``, the prototype).
+        joint_axes: Show arrows along the joint axes u_i, w_i, v_i.
+        platform_frame: Show the platform frame (x red, y green, z blue).
+        check_collisions: Turn colliding links black on every :meth:`display` and in
+            animations (``robot.collisions``).
+        collision_margin: Links nearer than this count as colliding [m].
+
+    Attributes:
+        robot: The robot drawn.
+        scene: The scene so far (what a browser that connects now receives).
+        check_collisions: As given; may be changed.
+        collision_margin: As given; may be changed [m].
+    """
+
+    def __init__(
+        self,
+        robot: SPMRobot | None = None,
+        *,
+        joint_axes: bool = False,
+        platform_frame: bool = False,
+        check_collisions: bool = True,
+        collision_margin: float = 0.0,
+    ) -> None:
+        if robot is None:
+            robot = build_robot()
+        if not isinstance(robot, SPMRobot):
+            raise InputError(
+                f"robot must be an SPMRobot (spm.build_robot(design)), got {type(robot).__name__}",
+                argument="robot",
+                value=robot,
+            )
+        if not _is_real(collision_margin) or collision_margin < 0:
+            raise InputError(
+                f"collision_margin must be a finite distance >= 0 [m], got {collision_margin!r}",
+                argument="collision_margin",
+                value=collision_margin,
+            )
+        self.robot = robot
+        self.check_collisions = bool(check_collisions)
+        self.collision_margin = float(collision_margin)
+        self.scene = Scene()
+        self._server: MeshcatServer | None = None
+        self._colliding: frozenset[str] = frozenset()
+        self._animated = False
+        meshes = link_meshes(robot.design)
+        # vertices split along sharp edges, so the viewer shades flat faces flat
+        self._meshes = {name: mesh.smooth_shaded for name, mesh in meshes.items()}
+        self._arrows = self._overlay_arrows()
+        self._overlays_shown = {"joint_axes": False, "platform_frame": False}
+        self._build()
+        self._q = np.zeros(robot.model.nq)
+        self.set_overlays(joint_axes=joint_axes, platform_frame=platform_frame)
+        self.display(self._q)
+        self.set_camera()
+
+    def __repr__(self) -> str:
+        server = self._server
+        state = f"url={server.url!r}" if server is not None and server.running else "not serving"
+        return f"Visualizer(design={self.robot.design.name!r}, {state})"
+
+    # ------------------------------------------------------------------- the scene
+    def _build(self) -> None:
+        scene = self.scene
+        scene.set_property("/Background", "top_color", [1.0, 1.0, 1.0])
+        scene.set_property("/Background", "bottom_color", [0.78, 0.82, 0.88])
+        scene.set_property("/Axes", "visible", False)
+        floor = float(self._meshes["base"].vertices[:, 2].min()) - 0.001
+        grid = np.diag([_GRID_SCALE, _GRID_SCALE, _GRID_SCALE, 1.0])
+        grid[2, 3] = floor
+        scene.set_transform("/Grid", grid)
+        for name in LINK_NAMES:
+            mesh = self._meshes[name]
+            for child, color in (("free", LINK_COLORS[name]), ("colliding", COLLIDING_COLOR)):
+                geometry = mg.TriangularMeshGeometry(mesh.vertices, mesh.faces)
+                scene.set_object(f"{link_path(name)}/{child}", mg.Mesh(geometry, _material(color)))
+            scene.set_property(f"{link_path(name)}/free", "visible", True)
+            scene.set_property(f"{link_path(name)}/colliding", "visible", False)
+        for arrow in self._arrows:
+            shaft = mg.Cylinder(arrow.length - _HEAD_LENGTH, _ARROW_RADIUS)
+            head = mg.Cylinder(_HEAD_LENGTH, radiusTop=0.0, radiusBottom=_HEAD_RADIUS)
+            rotation = _rotation_y_to(arrow.direction)
+            middle = 0.5 * (arrow.length - _HEAD_LENGTH) * arrow.direction
+            tip = (arrow.length - 0.5 * _HEAD_LENGTH) * arrow.direction
+            for part, geometry, position in (("shaft", shaft, middle), ("head", head, tip)):
+                scene.set_object(f"{arrow.path}/{part}", mg.Mesh(geometry, _material(arrow.color)))
+                scene.set_transform(f"{arrow.path}/{part}", _transform(rotation, position))
+
+    def _overlay_arrows(self) -> list[_Arrow]:
+        """The arrows of the joint axes and of the platform frame."""
+        design = self.robot.design
+        moving = [mesh for name, mesh in self._meshes.items() if name != "base"]
+        length = 1.1 * max(float(np.linalg.norm(mesh.vertices, axis=1).max()) for mesh in moving)
+        arrows = []
+        for letter, axes in (("u", design.u), ("w", design.w0), ("v", design.v0)):
+            for i in range(3):
+                node = f"{ROOT}/overlays/joint_axes/{letter}_{i + 1}"
+                direction = np.array(axes[i], dtype=float)
+                color = JOINT_AXIS_COLORS[letter]
+                arrows.append(_Arrow("joint_axes", node, node, direction, length, color))
+        frame = f"{ROOT}/overlays/platform_frame"
+        for i, (letter, color) in enumerate(_FRAME_COLORS.items()):
+            path = f"{frame}/{letter}"
+            arrows.append(_Arrow("platform_frame", frame, path, np.eye(3)[i], 0.8 * length, color))
+        return arrows
+
+    def set_overlays(
+        self, *, joint_axes: bool | None = None, platform_frame: bool | None = None
+    ) -> None:
+        """Show or hide the overlays (None leaves one as it is).
+
+        Args:
+            joint_axes: Arrows from O along u_i (base), w_i (proximal-distal joints)
+                and v_i (distal-platform joints), each moving with its link.
+            platform_frame: The platform frame's axes x (red), y (green), z (blue).
+        """
+        for name, value in (("joint_axes", joint_axes), ("platform_frame", platform_frame)):
+            if value is not None:
+                self.scene.set_property(f"{ROOT}/overlays/{name}", "visible", bool(value))
+                self._overlays_shown[name] = bool(value)
+
+    def _extent_points(self) -> FloatArray:
+        """Points that the camera must see: the link meshes and the overlays shown."""
+        transforms = self._pose_transforms(self._q)
+        points = [
+            self._meshes[name].vertices @ transforms[link_path(name)][:3, :3].T
+            + transforms[link_path(name)][:3, 3]
+            for name in LINK_NAMES
+        ]
+        for arrow in self._arrows:
+            if self._overlays_shown[arrow.overlay]:
+                T = transforms.get(arrow.node, np.eye(4))
+                points.append((T[:3, :3] @ (arrow.length * arrow.direction) + T[:3, 3])[None])
+        return np.concatenate(points)
+
+    def set_camera(
+        self,
+        azimuth: float = DEFAULT_AZIMUTH,
+        elevation: float = DEFAULT_ELEVATION,
+        *,
+        fill: float = 0.8,
+    ) -> None:
+        """Look at O from a direction, zoomed so the robot as displayed fills the view.
+
+        The camera orbits about O when dragged. The fit assumes a view at least 4:3
+        (width:height), as browser windows are.
+
+        Args:
+            azimuth: Direction of the camera seen from O, from +x towards +y [rad].
+            elevation: Height of the camera above the xy plane, seen from O [rad],
+                in (-pi/2, pi/2).
+            fill: Fraction of the view height (and width) the robot takes, in (0, 1].
+
+        Raises:
+            InputError: an argument out of range.
+        """
+        for name, value in (("azimuth", azimuth), ("elevation", elevation), ("fill", fill)):
+            if not _is_real(value):
+                raise InputError(
+                    f"{name} must be a finite number, got {value!r}", argument=name, value=value
+                )
+        if not abs(elevation) < math.pi / 2:
+            raise InputError(
+                f"elevation must lie in (-pi/2, pi/2) [rad], got {elevation!r}",
+                argument="elevation",
+                value=elevation,
+            )
+        if not 0 < fill <= 1:
+            raise InputError(f"fill must lie in (0, 1], got {fill!r}", argument="fill", value=fill)
+        ce, se = math.cos(elevation), math.sin(elevation)
+        back = np.array([ce * math.cos(azimuth), ce * math.sin(azimuth), se])
+        eye = _CAMERA_DISTANCE * back
+        right = np.cross(-back, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, -back)
+        relative = self._extent_points() - eye
+        depth = relative @ -back
+        x = relative @ right / depth
+        y = relative @ up / depth
+        half = max(np.ptp(y), 2 * np.max(np.abs(x)) / _MIN_ASPECT) / (2 * fill)
+        zoom = math.tan(_CAMERA_FOV / 2) / half
+        shift = -0.5 * (y.max() + y.min()) / (2 * half)  # lens shift, in view heights
+        scene = self.scene
+        # three.js is y-up: the world point (x, y, z) is (x, z, -y) there.
+        scene.set_property(_CAMERA, "position", [float(eye[0]), float(eye[2]), float(-eye[1])])
+        scene.set_property(_CAMERA, "zoom", float(zoom))
+        view = {
+            "enabled": True,
+            "fullWidth": 1.0,
+            "fullHeight": 1.0,
+            "offsetX": 0.0,
+            "offsetY": float(shift),
+            "width": 1.0,
+            "height": 1.0,
+        }
+        scene.set_property(_CAMERA, "view", view)
+
+    # ------------------------------------------------------------------------ poses
+    def _configuration(self, x: npt.ArrayLike, mode: str) -> FloatArray:
+        try:
+            array = np.asarray(x, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"x must be input angles theta (3,) or a configuration q (9,) [rad], got {x!r}",
+                argument="x",
+                value=x,
+            ) from exc
+        if array.shape == (3,):
+            return self.robot.configuration(array, mode)
+        if array.shape == (self.robot.model.nq,):
+            if mode != "home":
+                raise InputError(
+                    f"mode applies to input angles theta (3,), not to a configuration q; "
+                    f"got mode={mode!r} with q",
+                    argument="mode",
+                    value=mode,
+                )
+            if not np.all(np.isfinite(array)):
+                raise InputError("q must be finite, got NaN or inf", argument="x", value=x)
+            return array
+        raise InputError(
+            f"x must be input angles theta (3,) or a configuration q (9,) [rad], "
+            f"got shape {array.shape}",
+            argument="x",
+            value=x,
+        )
+
+    def _pose_transforms(self, q: FloatArray) -> dict[str, FloatArray]:
+        """Scene path -> transform (4, 4) of every moving node at q."""
+        placements = {name: se3.homogeneous for name, se3 in self.robot.placements(q).items()}
+        transforms = {link_path(name): placements[name] for name in LINK_NAMES}
+        for i in range(1, 4):
+            transforms[f"{ROOT}/overlays/joint_axes/w_{i}"] = placements[f"proximal_{i}"]
+            transforms[f"{ROOT}/overlays/joint_axes/v_{i}"] = placements["platform"]
+        transforms[f"{ROOT}/overlays/platform_frame"] = placements["platform"]
+        return transforms
+
+    def _collisions(self, q: FloatArray) -> list[LinkPair]:
+        if not self.check_collisions:
+            return []
+        pairs = self.robot.collisions(q, margin=self.collision_margin)
+        return [(str(a), str(b)) for a, b in pairs]
+
+    def _show_colliding(self, links: frozenset[str]) -> None:
+        for name in LINK_NAMES:
+            if (name in links) != (name in self._colliding):
+                self.scene.set_property(f"{link_path(name)}/free", "visible", name not in links)
+                self.scene.set_property(f"{link_path(name)}/colliding", "visible", name in links)
+        self._colliding = links
+
+    def _show(self, q: FloatArray) -> list[LinkPair]:
+        for path, matrix in self._pose_transforms(q).items():
+            self.scene.set_transform(path, matrix)
+        pairs = self._collisions(q)
+        self._show_colliding(frozenset(name for pair in pairs for name in pair))
+        self._q = q
+        return pairs
+
+    def display(self, x: npt.ArrayLike, *, mode: str = "home") -> list[LinkPair]:
+        """Show the robot at input angles theta or at a joint configuration q.
+
+        Links that collide turn black, and back to their colour when free. Stops an
+        animation if one is loaded.
+
+        Args:
+            x: Input angles theta [rad], shape (3,), or a joint configuration q [rad],
+                shape (9,) (joint order of :data:`~spm_pin.model.robot.JOINT_NAMES`).
+            mode: Assembly mode for theta: ``"home"`` or a label of
+                :func:`~spm_pin.forward_kinematics_all` such as ``"+-+/+"``.
+
+        Returns:
+            The colliding link pairs (``robot.collisions``), empty when none collide
+            or collision checking is off.
+
+        Raises:
+            InputError: x is neither (3,) nor (9,), not finite, or a bad mode.
+            UnreachableError: no assembly of theta in that mode.
+        """
+        q = self._configuration(x, mode)
+        if self._animated:
+            self.scene.set_animation([], play=False, repetitions=1)
+            self._animated = False
+        return self._show(q)
+
+    @property
+    def q(self) -> FloatArray:
+        """The configuration shown (9,) [rad] (a copy)."""
+        q: FloatArray = self._q.copy()
+        return q
+
+    @property
+    def colliding_links(self) -> frozenset[str]:
+        """Names of the links drawn black."""
+        return self._colliding
+
+    # ------------------------------------------------------------------- animations
+    def _path(self, path: npt.ArrayLike, start: npt.ArrayLike | None) -> FloatArray:
+        try:
+            array = np.asarray(path, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"path must be numbers of shape (N, 3) or (N, 9) [rad], got {path!r}",
+                argument="path",
+                value=path,
+            ) from exc
+        nq = self.robot.model.nq
+        if array.ndim != 2 or array.shape[0] < 1 or array.shape[1] not in (3, nq):
+            raise InputError(
+                f"path must have shape (N, 3) (input angles) or (N, {nq}) (configurations) "
+                f"with N >= 1 [rad], got shape {array.shape}",
+                argument="path",
+                value=path,
+            )
+        if not np.all(np.isfinite(array)):
+            raise InputError("path must be finite, got NaN or inf", argument="path", value=path)
+        if array.shape[1] == nq:
+            if start is not None:
+                raise InputError(
+                    "start applies to a path of input angles (N, 3), not to configurations",
+                    argument="start",
+                    value=start,
+                )
+            return array
+        followed = track(array, self.robot.design, start=start)
+        if np.any(followed.lost):
+            k = int(np.argmax(followed.lost))
+            raise UnreachableError(
+                f"the path loses its assembly mode at sample {k}, theta = "
+                f"{np.degrees(array[k]).round(6).tolist()} deg (the edge of the workspace)",
+                value=array[k],
+            )
+        return np.stack(
+            [
+                self.robot.configuration(theta, followed.labels[k], reference=followed.R[k])
+                for k, theta in enumerate(array)
+            ]
+        )
+
+    def animate(
+        self,
+        path: npt.ArrayLike,
+        *,
+        dt: float = 0.04,
+        start: npt.ArrayLike | None = None,
+        play: bool = True,
+        repetitions: int = 1,
+    ) -> RobotAnimation:
+        """Load a motion as a meshcat animation (play, pause and scrub it in the page).
+
+        A path of input angles is followed continuously in one assembly mode
+        (:func:`~spm_pin.track`), starting from the home mode (or from ``start``).
+        Colliding links turn black in the frames where they collide. The static
+        scene shows the first sample; :meth:`display` ends the animation.
+
+        Args:
+            path: Input angles [rad], shape (N, 3), or joint configurations [rad],
+                shape (N, 9).
+            dt: Time between samples [s].
+            start: Platform rotation (3, 3) near the assembly mode to follow at the
+                first sample (input-angle paths only).
+            play: Start playing when the page loads.
+            repetitions: How many times it plays.
+
+        Returns:
+            The configurations, times and collisions of the samples.
+
+        Raises:
+            InputError: bad shapes or values.
+            UnreachableError: the path leaves the workspace of the followed mode.
+        """
+        if not _is_real(dt) or dt <= 0:
+            raise InputError(f"dt must be a positive time [s], got {dt!r}", argument="dt", value=dt)
+        if isinstance(repetitions, bool) or not isinstance(repetitions, int) or repetitions < 1:
+            raise InputError(
+                f"repetitions must be an integer >= 1, got {repetitions!r}",
+                argument="repetitions",
+                value=repetitions,
+            )
+        qs = self._path(path, start)
+        times: FloatArray = float(dt) * np.arange(qs.shape[0], dtype=float)
+        poses = [self._pose_transforms(q) for q in qs]
+        collisions = [self._collisions(q) for q in qs]
+        animations = [
+            _transform_clip(node, times, [pose[node] for pose in poses]) for node in poses[0]
+        ]
+        if self.check_collisions:
+            for name in LINK_NAMES:
+                black = [any(name in pair for pair in pairs) for pairs in collisions]
+                free = [not b for b in black]
+                animations.append(_visibility_clip(f"{link_path(name)}/free", times, free))
+                animations.append(_visibility_clip(f"{link_path(name)}/colliding", times, black))
+        self._show(qs[0])
+        self.scene.set_animation(animations, play=bool(play), repetitions=repetitions)
+        self._animated = True
+        return RobotAnimation(q=qs, times=times, collisions=collisions)
+
+    # ------------------------------------------------------------------ the server
+    def start(self, *, timeout: float = 10.0) -> str:
+        """Start a meshcat server showing the scene (no-op when one runs).
+
+        Args:
+            timeout: How long to wait for the server to start and to take each
+                command [s].
+
+        Returns:
+            The URL of the viewer page.
+
+        Raises:
+            ViewerError: the server could not start.
+        """
+        if self._server is not None and self._server.running:
+            return self._server.url
+        self.stop()
+        server = MeshcatServer(timeout=timeout).start()
+        try:
+            self.scene.attach(server)
+        except BaseException:
+            self.scene.attach(None)
+            server.stop()
+            raise
+        self._server = server
+        return server.url
+
+    def stop(self) -> None:
+        """Stop the meshcat server, if one runs (the scene is kept)."""
+        server, self._server = self._server, None
+        self.scene.attach(None)
+        if server is not None:
+            server.stop()
+
+    @property
+    def running(self) -> bool:
+        """True while a meshcat server shows the scene."""
+        return self._server is not None and self._server.running
+
+    @property
+    def server(self) -> MeshcatServer | None:
+        """The running server, if any."""
+        return self._server
+
+    @property
+    def url(self) -> str:
+        """The viewer page of the running server.
+
+        Raises:
+            ViewerError: no server runs (call :meth:`start`).
+        """
+        if self._server is None:
+            raise ViewerError("no meshcat server runs; call start() or use 'with'")
+        return self._server.url
+
+    def __enter__(self) -> Visualizer:
+        self.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------- HTML export
+    def static_html(self, title: str | None = None) -> str:
+        """The scene (and its animation) as one self-contained HTML page.
+
+        The page inlines meshcat's viewer, needs no server and no network.
+
+        Args:
+            title: Page title (default: ``spm-pin: <design name>``).
+        """
+        return self.scene.static_html(title or f"spm-pin: {self.robot.design.name}")
+
+    def save_html(self, path: str | Path, title: str | None = None) -> Path:
+        """Write :meth:`static_html` to a file.
+
+        Args:
+            path: The HTML file to write.
+            title: Page title (default: ``spm-pin: <design name>``).
+
+        Returns:
+            The path written.
+        """
+        target = Path(path)
+        target.write_text(self.static_html(title), encoding="utf-8")
+        return target
+
+
+def _clip(path: str, tracks: list[dict[str, Any]]) -> dict[str, Any]:
+    """One node's part of a meshcat animation (a three.js clip, times in seconds)."""
+    return {"path": path, "clip": {"fps": 1.0, "name": "default", "tracks": tracks}}
+
+
+def _keys(times: FloatArray, values: list[Any]) -> list[dict[str, Any]]:
+    return [{"time": float(t), "value": v} for t, v in zip(times, values, strict=True)]
+
+
+def _transform_clip(path: str, times: FloatArray, matrices: list[FloatArray]) -> dict[str, Any]:
+    """Position and orientation keys of a node from its transforms (4, 4) at ``times``."""
+    quaternions = np.array([pin.Quaternion(m[:3, :3]).coeffs() for m in matrices])  # x, y, z, w
+    for k in range(1, len(quaternions)):  # the short way round between keys
+        if quaternions[k] @ quaternions[k - 1] < 0:
+            quaternions[k] = -quaternions[k]
+    positions = [m[:3, 3].tolist() for m in matrices]
+    return _clip(
+        path,
+        [
+            {"name": ".position", "type": "vector3", "keys": _keys(times, positions)},
+            {
+                "name": ".quaternion",
+                "type": "quaternion",
+                "keys": _keys(times, quaternions.tolist()),
+            },
+        ],
+    )
+
+
+def _visibility_clip(path: str, times: FloatArray, visible: list[bool]) -> dict[str, Any]:
+    """Keys that show or hide a node (three.js switches booleans, never blends them)."""
+    return _clip(path, [{"name": ".visible", "type": "boolean", "keys": _keys(times, visible)}])
+
+
+def _is_real(value: Any) -> bool:
+    return (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, (bool, np.bool_))
+        and math.isfinite(float(value))
+    )

@@ -1,0 +1,531 @@
+"""Calibration: analytic Jacobian against finite differences, recovery of known
+perturbations within the confidence intervals, the readings format and its errors,
+identifiability warnings, pose planning and the ``spm calibrate`` family of commands."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import get_design
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
+
+import spm_pin as spm
+from spm_pin import calibration as cal
+from spm_pin.cli import EXIT_NOT_IDENTIFIED, main
+
+#: Tolerances, by what they compare.
+TOL = {
+    "jacobian": 2e-7,  # analytic against central differences (h = 1e-6 rad)
+    "geometry": 1e-8,  # d w_i0 / d p against differences of SPMDesign.w0
+    "exact": 1e-8,  # noise-free recovery [rad]
+    "csv": 1e-11,  # values after a CSV round trip (12 significant digits)
+    "poses_deg": 1e-6,  # pose list written with 6 decimals
+    "fd_method": 1e-6,  # analytic and finite-difference calibrations agree [rad]
+}
+#: Probability that an honest interval misses, per parameter and for the joint test
+#: (small: the tests check many intervals).
+MISS = 1e-4
+JOINT_MISS = 1e-4
+#: Seeds of the recovery test.
+SEEDS = range(6)
+
+
+def truth_of(result: cal.CalibrationResult, syn: cal.SyntheticReadings) -> np.ndarray:
+    """The true values of the estimated parameters (mount/ref relative to the start)."""
+    vector = syn.truth.vector(result.start)
+    return np.array([vector[cal.PARAMETER_NAMES.index(e.name)] for e in result.estimates])
+
+
+def calibrate_quietly(readings: cal.Readings, **kwargs: object) -> cal.CalibrationResult:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", cal.IdentifiabilityWarning)
+        return cal.calibrate(readings, **kwargs)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------------- Jacobian
+@pytest.mark.parametrize("design_name", ["prototype", "general", "agile_eye"])
+def test_home_axis_derivatives_match_the_design(design_name: str) -> None:
+    """d w_i0 / d(alpha1, alpha2, beta) against differences of SPMDesign.w0."""
+    design = get_design(design_name)
+    geo = cal._geometry(design)
+    np.testing.assert_allclose(geo.w0, design.w0, atol=1e-12)
+    h = 1e-6
+    for p, name in enumerate(("alpha1", "alpha2", "beta")):
+        up = dataclasses.replace(design, **{name: getattr(design, name) + h})
+        down = dataclasses.replace(design, **{name: getattr(design, name) - h})
+        numeric = (np.asarray(up.w0) - np.asarray(down.w0)) / (2 * h)
+        np.testing.assert_allclose(geo.dw0[p], numeric, atol=TOL["geometry"], err_msg=name)
+
+
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+@pytest.mark.parametrize("design_name", ["prototype", "general"])
+def test_residual_jacobian_matches_finite_differences(kind: str, design_name: str) -> None:
+    design = get_design(design_name)
+    rng = np.random.default_rng(11)
+    syn = cal.synthetic_readings(15, design, seed=3, kind=kind, max_angle_deg=60.0)
+    start = cal.CalibrationParameters.nominal(
+        design,
+        mount=Rotation.random(random_state=rng).as_matrix(),
+        reference=Rotation.random(random_state=rng).as_matrix(),
+    )
+    model = cal._Model(syn.readings.theta, syn.readings.orientation, kind, design, start)
+    # A point away from every special value: offsets, links, mount and ref all perturbed.
+    x = syn.truth.vector(start)
+    x[9:12] = np.radians([1.5, -2.0, 0.7])
+    x[6:9] += np.radians([0.4, 0.3, -0.5])
+    evaluation = model.evaluate(x, jac=True)
+    assert np.all(evaluation.reachable)
+    assert evaluation.jacobian is not None
+    J = evaluation.jacobian.reshape(-1, len(cal.PARAMETER_NAMES))
+    h = 1e-6
+    for p, name in enumerate(cal.PARAMETER_NAMES):
+        step = np.zeros_like(x)
+        step[p] = h
+        up = model.evaluate(x + step, jac=False).residual.reshape(-1)
+        down = model.evaluate(x - step, jac=False).residual.reshape(-1)
+        np.testing.assert_allclose(
+            J[:, p], (up - down) / (2 * h), atol=TOL["jacobian"], err_msg=name
+        )
+
+
+def test_analytic_and_finite_difference_calibrations_agree() -> None:
+    syn = cal.synthetic_readings(60, seed=8)
+    analytic = cal.calibrate(syn.readings)
+    numeric = cal.calibrate(syn.readings, jacobian="3-point")
+    np.testing.assert_allclose(
+        [e.value for e in analytic.estimates],
+        [e.value for e in numeric.estimates],
+        atol=TOL["fd_method"],
+    )
+    assert analytic.method == "analytic"
+    assert numeric.method == "3-point"
+
+
+# ------------------------------------------------------------------------- recovery
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+def test_known_perturbations_recovered_within_confidence_intervals(kind: str) -> None:
+    """Over several seeds, every true value lies in its 99.9 % interval, the joint
+    Mahalanobis distance passes the chi-square test, and its mean over the seeds is
+    about the number of parameters (the covariance is neither too small nor too large:
+    the mean of 6 chi-square(n) draws, divided by n, has a standard deviation of
+    sqrt(2 / (6 n)) <= 0.24)."""
+    distances = []
+    for seed in SEEDS:
+        syn = cal.synthetic_readings(100, seed=seed, kind=kind)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # good readings: no identifiability warning
+            result = cal.calibrate(syn.readings, confidence=1 - MISS)
+        assert result.ok, result.identifiability.warnings
+        truth = truth_of(result, syn)
+        values = np.array([e.value for e in result.estimates])
+        low = np.array([e.low for e in result.estimates])
+        high = np.array([e.high for e in result.estimates])
+        assert np.all((low <= truth) & (truth <= high)), (seed, values - truth, high - values)
+        error = values - truth
+        distance = float(error @ np.linalg.solve(result.covariance, error))
+        assert distance <= chi2.ppf(1 - JOINT_MISS, error.size), (seed, distance)
+        distances.append(distance / error.size)
+        # The calibrated design is the identified link angles on the nominal design.
+        assert result.design.alpha1 == result.parameters.alpha1
+        assert result.design.dimensions == spm.SPMDesign.prototype().dimensions
+    assert 0.4 < float(np.mean(distances)) < 1.7, distances
+
+
+def test_noise_free_readings_give_the_truth_exactly() -> None:
+    fine = cal.JointConvention(ticks_per_turn=2**40)  # no visible encoder steps
+    syn = cal.synthetic_readings(40, seed=2, noise_deg=0.0, joints=fine, offset_std_deg=20.0)
+    result = cal.calibrate(syn.readings, parameters="offsets,links,mount,ref_x,ref_y")
+    np.testing.assert_allclose(
+        [e.value for e in result.estimates], truth_of(result, syn), atol=TOL["exact"]
+    )
+    np.testing.assert_allclose(result.error_deg, 0.0, atol=1e-6)
+
+
+def test_robust_loss_flags_and_survives_outliers() -> None:
+    syn = cal.synthetic_readings(100, seed=4, outlier_fraction=0.1, outlier_deg=25.0)
+    result = cal.calibrate(syn.readings, confidence=1 - MISS)
+    assert result.ok
+    np.testing.assert_array_equal(result.outliers, syn.outliers)
+    truth = truth_of(result, syn)
+    for entry, value in zip(result.estimates, truth, strict=True):
+        assert entry.low <= value <= entry.high, entry
+    assert np.all(result.weights[syn.outliers] < 0.5)
+    assert any("lines" in m for m in result.messages)
+    plain = cal.calibrate(syn.readings, loss="linear")
+    assert plain.sigma_deg > result.sigma_deg
+
+
+def test_encoder_conventions_and_offsets_in_ticks(tmp_path: Path) -> None:
+    joints = cal.JointConvention(
+        direction=(-1, 1, -1), zero_offset_ticks=(2048, 1000, 3000), gear_ratio=(2.0, 1.0, 1.0)
+    )
+    syn = cal.synthetic_readings(100, seed=6, joints=joints, unit="ticks")
+    path = tmp_path / "r.csv"
+    syn.readings.to_csv(path)
+    readings = cal.load_readings(path)
+    assert readings.servo_unit == "ticks"
+    assert readings.joints == joints
+    rows = [line.split(",") for line in path.read_text().splitlines() if line[0] != "#"]
+    raw = np.array([[int(x) for x in row[1:4]] for row in rows[1:]])
+    expected = (
+        np.array([-1, 1, -1])
+        * (raw - [2048, 1000, 3000])
+        * 2
+        * np.pi
+        / (4096 * np.array([2.0, 1.0, 1.0]))
+    )
+    np.testing.assert_allclose(readings.theta, expected, atol=1e-12)
+    result = cal.calibrate(readings)
+    # The new zero counts read the model's zero: true offsets in counts.
+    true_zero = np.array(joints.zero_offset_ticks) + syn.truth.offsets / joints.radians_per_tick
+    std_ticks = np.array([result.estimate(f"offset_{i}").std for i in (1, 2, 3)]) / np.abs(
+        joints.radians_per_tick
+    )
+    assert np.all(np.abs(np.array(result.joints.zero_offset_ticks) - true_zero) < 4 * std_ticks)
+    toml = result.offsets_toml()
+    import tomllib
+
+    data = tomllib.loads(toml)
+    assert data["ticks_per_turn"] == 4096
+    for i in range(3):
+        joint = data["joints"][f"u_{i + 1}"]
+        assert joint["direction"] == joints.direction[i]
+        assert joint["zero_offset_ticks"] == round(result.joints.zero_offset_ticks[i])
+        assert math.isclose(joint["offset_deg"], result.offsets_deg[i], abs_tol=1e-6)
+
+
+# ------------------------------------------------------------------------ CSV format
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+@pytest.mark.parametrize("unit", ["ticks", "deg", "rad"])
+def test_readings_csv_round_trip(kind: str, unit: str) -> None:
+    syn = cal.synthetic_readings(12, seed=1, kind=kind, unit=unit)
+    text = syn.readings.to_csv(comments=["made by a test"])
+    back = cal.parse_readings(text, source="mem.csv")
+    assert back.kind == kind
+    assert back.servo_unit == unit
+    np.testing.assert_allclose(back.theta, syn.readings.theta, atol=TOL["csv"])
+    np.testing.assert_allclose(back.orientation, syn.readings.orientation, atol=TOL["csv"])
+    assert back.labels == syn.readings.labels
+    assert back.lines is not None
+    first_row = next(n for n, line in enumerate(text.splitlines(), 1) if line.startswith("1,"))
+    assert back.lines.tolist() == list(range(first_row, first_row + 12))
+
+
+def test_euler_columns_and_extra_columns() -> None:
+    text = (
+        "pose,servo1_deg,servo2_deg,servo3_deg,roll_deg,pitch_deg,yaw_deg,time_s,x_note\n"
+        "a,10,20,30,5,-3,40,0.5,first\n"
+        "b,0,0,0,0,0,0,1.0,second\n"
+    )
+    readings = cal.parse_readings(text)
+    expected = Rotation.from_euler("xyz", [5, -3, 40], degrees=True).as_matrix()
+    np.testing.assert_allclose(readings.orientation[0], expected, atol=1e-12)
+    np.testing.assert_allclose(readings.theta[0], np.radians([10, 20, 30]))
+    assert readings.labels == ("a", "b")
+    assert readings.extra == {"time_s": ("0.5", "1.0"), "x_note": ("first", "second")}
+    assert "x_note" in readings.to_csv()
+
+
+GOOD = (
+    "# readings\n"  # 1
+    "# ticks_per_turn = 4096\n"  # 2
+    "pose,servo1_deg,servo2_deg,servo3_deg,qw,qx,qy,qz\n"  # 3
+    "1,0,0,0,1,0,0,0\n"  # 4
+    "2,10,5,-3,0.9998477,0.0174524,0,0\n"  # 5
+    "3,-20,5,7,0.9961947,0,0.0871557,0\n"  # 6
+)
+
+
+def _edit(old: str, new: str) -> str:
+    assert old in GOOD
+    return GOOD.replace(old, new, 1)
+
+
+MALFORMED = {
+    "missing servo column": (
+        _edit("servo2_deg,", "").replace("1,0,0,0,1", "1,0,0,1"),
+        3,
+        "missing servo column(s) servo2_<unit>",
+    ),
+    "missing quaternion column": (_edit(",qz", ""), 3, "missing quaternion column(s) ['qz']"),
+    "no orientation": (_edit(",qw,qx,qy,qz", ""), 3, "missing orientation columns"),
+    "NaN": (_edit("2,10,5", "2,nan,5"), 5, "column servo1_deg: 'nan' is not allowed"),
+    "infinite": (_edit("0.0871557", "inf"), 6, "column qy: 'inf' is not allowed"),
+    "empty value": (_edit("2,10,5", "2,,5"), 5, "column servo1_deg: missing value"),
+    "not a number": (_edit("3,-20", "3,-2O"), 6, "column servo1_deg: '-2O' is not a number"),
+    "unknown unit": (_edit("servo1_deg", "servo1_grad"), 3, "unit 'grad' is not allowed"),
+    "mixed units": (_edit("servo2_deg", "servo2_rad"), 3, "servo columns mix units"),
+    "fractional ticks": (
+        GOOD.replace("_deg", "_ticks").replace("2,10,5", "2,10.5,5"),
+        5,
+        "is not a whole number of encoder counts",
+    ),
+    "quaternion in degrees": (
+        _edit("0.9961947,0,0.0871557,0", "0,0,10,0"),
+        6,
+        "the quaternion has norm 10",
+    ),
+    "unknown column": (
+        _edit("qz\n", "qz,temp\n").replace("\n1,", "\n1,").replace(",0,0\n2", ",0,0,20\n2"),
+        3,
+        "unknown column 'temp'",
+    ),
+    "duplicate column": (_edit("servo3_deg", "servo1_deg"), 3, "appears twice"),
+    "too many values": (_edit("1,0,0,0,1,0,0,0", "1,0,0,0,1,0,0,0,9"), 4, "9 values"),
+    "unknown setting": (_edit("ticks_per_turn", "tick_per_turn"), 2, "unknown setting"),
+    "bad direction": (_edit("# ticks_per_turn = 4096", "# direction = 1, 2, 1"), 2, "+1 or -1"),
+    "no rows": (GOOD.split("1,0,0,0")[0], None, "no readings"),
+    "two orientations": (
+        _edit("qz\n", "qz,roll_deg,pitch_deg,yaw_deg\n"),
+        3,
+        "more than one orientation",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED))
+def test_malformed_files_report_the_line(case: str, tmp_path: Path) -> None:
+    text, line, message = MALFORMED[case]
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(spm.FileFormatError) as info:
+        cal.load_readings(path)
+    error = info.value
+    assert isinstance(error, ValueError)
+    assert error.line == line
+    assert error.path == str(path)
+    assert message in str(error)
+    if line is not None:
+        assert str(error).startswith(f"{path}:{line}: ")
+
+
+def test_good_file_and_missing_file(tmp_path: Path) -> None:
+    readings = cal.parse_readings(GOOD)
+    assert len(readings) == 3
+    assert readings.lines is not None
+    assert readings.lines.tolist() == [4, 5, 6]
+    with pytest.raises(spm.FileFormatError, match="cannot read readings file"):
+        cal.load_readings(tmp_path / "nope.csv")
+    with pytest.raises(spm.FileFormatError, match="no header row"):
+        cal.parse_readings("# only a comment\n")
+
+
+# ------------------------------------------------------------------ identifiability
+def test_too_few_readings_warn_and_give_no_false_answer() -> None:
+    syn = cal.synthetic_readings(2, seed=3)
+    with pytest.warns(cal.IdentifiabilityWarning, match="cannot identify"):
+        result = cal.calibrate(syn.readings)
+    assert not result.ok
+    ident = result.identifiability
+    assert ident.unidentified
+    assert ident.redundancy <= 0
+    for entry in result.estimates:
+        assert math.isinf(entry.std)
+        assert math.isinf(entry.high - entry.low)
+        if not entry.identified:
+            assert entry.value == entry.start
+    assert "WARNING" in result.report()
+
+
+def test_one_pose_repeated_cannot_identify_the_links() -> None:
+    poses = np.tile(np.radians([10.0, -5.0, 3.0]), (40, 1))
+    syn = cal.synthetic_readings(poses, seed=3)
+    with pytest.warns(cal.IdentifiabilityWarning):
+        result = cal.calibrate(syn.readings)
+    assert not result.ok
+    assert {"alpha1", "alpha2", "beta"} <= set(result.identifiability.unidentified)
+    nominal = spm.SPMDesign.prototype()
+    assert result.design.alpha1 == nominal.alpha1
+    assert result.design.beta == nominal.beta
+
+
+def test_pure_turns_about_the_axis_are_degenerate() -> None:
+    turn = np.radians(np.linspace(-150.0, 150.0, 50))
+    syn = cal.synthetic_readings(np.stack([turn, turn, turn], axis=1), seed=3)
+    with pytest.warns(cal.IdentifiabilityWarning):
+        result = cal.calibrate(syn.readings)
+    assert not result.ok
+    assert {"alpha1", "alpha2", "beta"} <= set(result.identifiability.unidentified)
+
+
+def test_heading_of_the_sensor_and_common_offset_are_inseparable() -> None:
+    """Coaxial SPM: a common offset turns the platform about the axis, as a turn of the
+    sensor's reference frame does; the report names the combination."""
+    syn = cal.synthetic_readings(80, seed=5)
+    with pytest.warns(cal.IdentifiabilityWarning, match="ref_z"):
+        result = cal.calibrate(syn.readings, parameters="offsets,links,mount,ref")
+    ident = result.identifiability
+    assert ident.unidentified == ("ref_z",)
+    assert ident.combinations == ("ref_z ~ offset_1 + offset_2 + offset_3",)
+    assert result.estimate("ref_z").value == 0.0
+    # The differences of the offsets do not depend on that choice.
+    truth = syn.truth.offsets
+    found = result.parameters.offsets
+    stds = [result.estimate(f"offset_{i}").std for i in (1, 2, 3)]
+    assert abs((found[0] - found[1]) - (truth[0] - truth[1])) < 5 * max(stds)
+
+
+def test_axis_readings_do_not_see_the_mounting() -> None:
+    syn = cal.synthetic_readings(50, seed=2, kind="axes")
+    with pytest.warns(cal.IdentifiabilityWarning, match="mount_x has no effect"):
+        result = cal.calibrate(syn.readings, parameters="offsets,links,mount")
+    assert set(result.identifiability.unidentified) == {"mount_x", "mount_y", "mount_z"}
+
+
+def test_poor_conditioning_is_reported() -> None:
+    rng = np.random.default_rng(0)
+    poses = rng.uniform(-0.09, 0.09, size=(60, 3))  # +-5 deg around home only
+    syn = cal.synthetic_readings(poses, seed=3)
+    with pytest.warns(cal.IdentifiabilityWarning, match="inseparable"):
+        result = cal.calibrate(syn.readings)
+    assert result.identifiability.correlated
+    assert result.identifiability.condition_number > 100
+
+
+# ------------------------------------------------------------------------- planning
+def test_plan_poses_is_admissible_and_informative(tmp_path: Path) -> None:
+    design = spm.SPMDesign.prototype()
+    plan = cal.plan_poses(15, design, candidates=600, seed=1, min_margin=0.3, min_gap_deg=50)
+    assert plan.theta.shape == (15, 3)
+    jac = spm.jacobian(plan.theta, design)
+    assert np.all(jac.reachable)
+    assert np.all(jac.singularity_margin >= 0.3)
+    d12 = 120 + np.degrees(plan.theta[:, 0] - plan.theta[:, 1])
+    d23 = 120 + np.degrees(plan.theta[:, 1] - plan.theta[:, 2])
+    assert np.all(d12 >= 50) and np.all(d23 >= 50) and np.all(360 - d12 - d23 >= 50)
+    assert plan.observability.index > plan.random_index
+    assert plan.observability.identifiability.ok
+    path = tmp_path / "poses.csv"
+    plan.to_csv(path, joints=cal.JointConvention(zero_offset_ticks=(2048, 2048, 2048)))
+    np.testing.assert_allclose(
+        np.degrees(cal.load_poses(path)), plan.theta_deg, atol=TOL["poses_deg"]
+    )
+    header = next(line for line in path.read_text().splitlines() if not line.startswith("#"))
+    assert header == "pose,theta1_deg,theta2_deg,theta3_deg,servo1_ticks,servo2_ticks,servo3_ticks"
+
+
+def test_predicted_deviations_match_the_calibration() -> None:
+    plan = cal.plan_poses(30, candidates=500, seed=2)
+    predicted = plan.observability.predicted_std
+    ratios = []
+    for seed in range(3):
+        syn = cal.synthetic_readings(plan.theta, seed=seed)
+        result = cal.calibrate(syn.readings)
+        ratios.append([e.std for e in result.estimates] / predicted)
+    assert 0.6 < float(np.median(ratios)) < 1.6
+
+
+def test_observability_of_degenerate_poses() -> None:
+    turn = np.radians(np.linspace(-90.0, 90.0, 10))
+    obs = cal.observability(np.stack([turn, turn, turn], axis=1))
+    assert not obs.identifiability.ok
+    assert obs.index == pytest.approx(0.0, abs=1e-6)
+    assert np.all(np.isinf(obs.predicted_std[3:6]))
+
+
+# ----------------------------------------------------------------------- bad inputs
+def test_bad_arguments_name_what_is_allowed() -> None:
+    syn = cal.synthetic_readings(10, seed=0)
+    with pytest.raises(spm.InputError, match=r"unknown parameter 'alpha3'.*allowed"):
+        cal.calibrate(syn.readings, parameters=["alpha3"])
+    with pytest.raises(spm.InputError, match="loss must be one of"):
+        cal.calibrate(syn.readings, loss="l2")
+    with pytest.raises(spm.InputError, match="readings must be Readings"):
+        cal.calibrate(np.zeros((3, 3)))  # type: ignore[arg-type]
+    with pytest.raises(spm.InputError, match="confidence"):
+        cal.calibrate(syn.readings, confidence=1.5)
+    with pytest.raises(spm.InputError, match="direction"):
+        cal.JointConvention(direction=(1, 0, 1))
+    with pytest.raises(spm.InputError, match="poses must be a positive integer"):
+        cal.synthetic_readings(0)
+    with pytest.raises(spm.InputError, match="theta must have shape"):
+        cal.Readings(theta=np.zeros((2, 2)), orientation=np.zeros((2, 3, 3)))
+    with pytest.raises(spm.InputError, match="not a rotation"):
+        cal.Readings(theta=np.zeros((1, 3)), orientation=np.ones((1, 3, 3)))
+    with pytest.raises(spm.InputError, match="would not read back"):
+        syn.readings.to_csv(comments=["ticks_per_turn = 12"])
+
+
+def test_residual_plot_is_a_png(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    result = cal.calibrate(cal.synthetic_readings(30, seed=1, outlier_fraction=0.1).readings)
+    path = result.plot_residuals(tmp_path / "res.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# ------------------------------------------------------------------------------ CLI
+def test_cli_synth_calibrate_and_use_the_design(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    readings = tmp_path / "r.csv"
+    assert main(["synth-readings", "80", "--out", str(readings), "--seed", "2", "--json"]) == 0
+    synth = json.loads(capsys.readouterr().out)
+    out = tmp_path / "cal.toml"
+    assert main(["calibrate", str(readings), "--out", str(out), "--no-plot", "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["ok"] is True
+    assert set(record["files"]) == {"design", "report", "offsets"}
+    design = spm.SPMDesign.load(out)
+    by_name = {p["name"]: p for p in record["parameters"]}
+    assert math.isclose(math.degrees(design.alpha1), by_name["alpha1"]["value_deg"])
+    lo, hi = by_name["alpha1"]["ci_deg"]
+    assert lo - 1.0 < synth["truth"]["alpha1_deg"] < hi + 1.0
+    assert (tmp_path / "cal_report.txt").read_text().startswith("spm-pin calibration")
+    assert "[joints.u_1]" in (tmp_path / "cal_offsets.toml").read_text()
+    assert main(["fk", "60", "90", "120", "--design", str(out), "--json"]) == 0
+    fk = json.loads(capsys.readouterr().out)
+    assert fk["design"] == "prototype_calibrated"
+    np.testing.assert_allclose(
+        fk["R"], spm.forward_kinematics(np.radians([60, 90, 120]), design).R, atol=1e-12
+    )
+
+
+def test_cli_malformed_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text(MALFORMED["NaN"][0])
+    assert main(["calibrate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith(f"spm: error: {path}:5: column servo1_deg")
+
+
+def test_cli_unidentifiable_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    readings = tmp_path / "few.csv"
+    assert main(["synth-readings", "2", "--out", str(readings)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "cal.toml"
+    assert main(["calibrate", str(readings), "--out", str(out)]) == EXIT_NOT_IDENTIFIED
+    captured = capsys.readouterr()
+    assert "spm: warning:" in captured.err and "--force" in captured.err
+    assert not out.exists()
+    assert not (tmp_path / "cal_report.txt").exists()
+    assert main(["calibrate", str(readings), "--out", str(out), "--force", "--no-plot"]) == 0
+    assert out.exists()
+
+
+def test_cli_plan_poses_and_synth_at_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    poses = tmp_path / "poses.csv"
+    assert main(["plan-poses", "12", "--out", str(poses), "--candidates", "300", "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["poses"] == 12
+    assert record["observability_index"] > record["random_poses_index"]
+    np.testing.assert_allclose(
+        np.degrees(cal.load_poses(poses)), record["theta_deg"], atol=TOL["poses_deg"]
+    )
+    readings = tmp_path / "r.csv"
+    args = ["synth-readings", "--poses", str(poses), "--out", str(readings), "--unit", "deg"]
+    assert main(args) == 0
+    assert len(cal.load_readings(readings)) == 12
+    assert main(["plan-poses", "0"]) == 2
+    assert "N must be a positive number" in capsys.readouterr().err

@@ -1,0 +1,374 @@
+"""The meshcat scene in a real headless Chromium (driven by Playwright).
+
+The live viewer and the exported HTML are opened in one shared browser and read back
+through the page's global ``viewer`` (three.js scene, meshcat scene tree, canvas
+pixels). Locally these tests skip when Chromium or Playwright is missing; under CI
+(``CI=true``) they fail instead.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import os
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import spm_pin as spm
+from spm_pin.model.geometry import LINK_NAMES
+from spm_pin.model.robot import SPMRobot
+from spm_pin.viz import LINK_COLORS, ROOT, Visualizer, link_path
+from spm_pin.viz.browser import CHROMIUM_ARGS, find_chromium, screenshot
+
+pytestmark = pytest.mark.browser
+
+#: Tolerances, by what they compare.
+TOL = {
+    "matrix": 1e-6,  # a node's world matrix in the page (float32) against Pinocchio
+    "color": 1.0 / 255.0,  # a material colour in the page against LINK_COLORS
+    "same_pixels": 0.995,  # share of pixels within 8 levels in two renders of one scene
+    "robot_pixels": 0.03,  # share of the view the robot covers, at least
+}
+VIEWPORT = {"width": 640, "height": 480}
+WAIT_S = 10.0  # for the live page to show a change
+DARK = 40  # a pixel whose channels are all below this is black
+
+DEMO_DEG = [60.0, 90.0, 120.0]
+STUDY_COLLIDING_DEG = [60.0, 90.0, 220.0]
+HOME_COLLIDING_DEG = [0.0, 0.0, 80.0]
+
+# ------------------------------------------------------------------ page helpers
+#: The node at a meshcat path (a list of names), without creating missing nodes.
+_FIND = """(path) => {
+    let node = viewer.scene_tree;
+    for (const name of path) {
+        node = node.children[name];
+        if (node === undefined) return null;
+    }
+    return node;
+}"""
+#: World matrix of a node (three.js, y-up) and of the scene root (z-up to y-up).
+_MATRIX = f"""(path) => {{
+    const node = ({_FIND})(path);
+    if (node === null) return null;
+    viewer.scene.updateMatrixWorld(true);
+    return [Array.from(node.object.matrixWorld.elements),
+            Array.from(viewer.scene.matrixWorld.elements)];
+}}"""
+#: Per link: is the coloured / black mesh visible, and the colour of each.
+_LINK_STATE = f"""(names) => {{
+    const out = {{}};
+    for (const name of names) {{
+        const link = ({_FIND})(["meshcat", "spm", "links", name]);
+        const part = (child) => {{
+            const node = link.children[child];
+            const mesh = node.children["<object>"].object;
+            return {{visible: node.object.visible, color: mesh.material.color.toArray(),
+                     isMesh: mesh.isMesh,
+                     vertices: mesh.geometry.attributes.position.count}};
+        }};
+        out[name] = {{free: part("free"), colliding: part("colliding")}};
+    }}
+    return out;
+}}"""
+#: World position (z-up) of vertex 0 of a link's mesh.
+_VERTEX = f"""(name) => {{
+    const link = ({_FIND})(["meshcat", "spm", "links", name, "free", "<object>"]);
+    const mesh = link.object;
+    const a = mesh.geometry.attributes.position;
+    const p = new MeshCat.THREE.Vector3(a.getX(0), a.getY(0), a.getZ(0));
+    viewer.scene.updateMatrixWorld(true);
+    p.applyMatrix4(mesh.matrixWorld);
+    p.applyMatrix4(new MeshCat.THREE.Matrix4().copy(viewer.scene.matrixWorld).invert());
+    return [[a.getX(0), a.getY(0), a.getZ(0)], [p.x, p.y, p.z]];
+}}"""
+_SEEK = """(t) => {
+    const animator = viewer.animator;
+    animator.play();
+    animator.pause();
+    animator.seek(t);
+    return animator.actions.length;
+}"""
+
+
+def _on_ci() -> bool:
+    return os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
+
+
+def _unavailable(reason: str) -> None:
+    if _on_ci():
+        pytest.fail(f"{reason}; under CI the browser tests must run, not skip")
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    """One headless Chromium for the whole session (Debian's, never a download)."""
+    executable = find_chromium()
+    if executable is None:
+        _unavailable("no Chromium on the PATH (Debian: apt install chromium)")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        _unavailable("Playwright for Python is not installed (pip install playwright)")
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=executable, args=list(CHROMIUM_ARGS))
+        yield launched
+        launched.close()
+
+
+@pytest.fixture(scope="module")
+def robot() -> SPMRobot:
+    return spm.build_robot()
+
+
+@pytest.fixture(scope="module")
+def live(browser: Any, robot: SPMRobot) -> Iterator[tuple[Visualizer, Any]]:
+    """A served visualizer and a page connected to it."""
+    with Visualizer(robot) as viz:
+        page = browser.new_page(viewport=VIEWPORT)
+        errors: list[str] = []
+        page.on("pageerror", lambda error: errors.append(str(error)))
+        page.goto(viz.url)
+        page.wait_for_function(
+            "typeof viewer !== 'undefined' && viewer.connection !== undefined"
+            " && viewer.connection.readyState === 1"
+        )
+        names = list(LINK_NAMES)
+        page.wait_for_function(
+            f"(names) => names.every((n) => {{ const node = ({_FIND})("
+            "['meshcat', 'spm', 'links', n, 'colliding', '<object>']);"
+            " return node !== null && node.object.isMesh; })",
+            arg=names,
+        )
+        yield viz, page
+        assert errors == [], errors
+        page.close()
+
+
+def open_offline(browser: Any, path: Path) -> tuple[Any, list[str]]:
+    """A page showing a saved scene with every network request blocked (and listed)."""
+    page = browser.new_page(viewport=VIEWPORT)
+    url = path.resolve().as_uri()
+    blocked: list[str] = []
+
+    def route(request_route: Any) -> None:
+        if request_route.request.url == url:
+            request_route.continue_()
+        else:
+            blocked.append(request_route.request.url)
+            request_route.abort()
+
+    page.route("**/*", route)
+    page.goto(url)
+    page.wait_for_function("window.spm_scene_ready === true")
+    return page, blocked
+
+
+def capture(page: Any) -> np.ndarray:
+    """The canvas as an RGB array (height, width, 3)."""
+    from PIL import Image
+
+    data_url = page.evaluate("viewer.capture_image()")
+    image = Image.open(io.BytesIO(base64.b64decode(data_url.split(",", 1)[1])))
+    return np.asarray(image.convert("RGB"), dtype=np.int16)
+
+
+def dark_pixels(image: np.ndarray) -> int:
+    return int(np.sum(np.all(image < DARK, axis=-1)))
+
+
+def node_matrix(page: Any, path: str) -> np.ndarray:
+    """A node's transform in the z-up world (the scene root's rotation taken out)."""
+    result = page.evaluate(_MATRIX, [part for part in path.split("/") if part])
+    assert result is not None, f"no node {path}"
+    world, scene = (np.array(m, dtype=float).reshape(4, 4).T for m in result)
+    return np.linalg.solve(scene, world)
+
+
+def wait_until(condition: Callable[[], bool], what: str) -> None:
+    deadline = time.monotonic() + WAIT_S
+    while not condition():
+        assert time.monotonic() < deadline, f"the page did not show {what} in {WAIT_S} s"
+        time.sleep(0.02)
+
+
+def show(viz: Visualizer, page: Any, x: Any, **kwargs: Any) -> list[tuple[str, str]]:
+    """Display x and wait until the page shows it (links and colours)."""
+    pairs = viz.display(x, **kwargs)
+    expected = {name: viz.robot.placement(viz.q, name).homogeneous for name in LINK_NAMES}
+    black = {name for pair in pairs for name in pair}
+
+    def shown() -> bool:
+        state = page.evaluate(_LINK_STATE, list(LINK_NAMES))
+        if {n for n in LINK_NAMES if state[n]["colliding"]["visible"]} != black:
+            return False
+        return all(
+            np.allclose(node_matrix(page, link_path(n)), expected[n], atol=TOL["matrix"])
+            for n in LINK_NAMES
+        )
+
+    wait_until(shown, f"the pose {x}")
+    return pairs
+
+
+def colliding_q(robot: SPMRobot) -> np.ndarray:
+    theta = np.radians(STUDY_COLLIDING_DEG)
+    return robot.configuration(theta, spm.forward_kinematics_all(theta).labels[0])
+
+
+# -------------------------------------------------------------------------- tests
+def test_one_scene_node_per_link(live: tuple[Visualizer, Any]) -> None:
+    viz, page = live
+    names = page.evaluate(f"Object.keys(({_FIND})(['meshcat', 'spm', 'links']).children)")
+    assert names == list(LINK_NAMES)
+    state = page.evaluate(_LINK_STATE, list(LINK_NAMES))
+    for name in LINK_NAMES:
+        free, colliding = state[name]["free"], state[name]["colliding"]
+        assert free["isMesh"] and colliding["isMesh"]
+        assert free["visible"] and not colliding["visible"]
+        np.testing.assert_allclose(free["color"], LINK_COLORS[name][:3], atol=TOL["color"])
+        np.testing.assert_allclose(colliding["color"], [0.0, 0.0, 0.0], atol=TOL["color"])
+        obj = viz.scene.object(f"{link_path(name)}/free")
+        assert obj is not None
+        geometry = obj["geometries"][0]["data"]
+        sent = len(geometry["attributes"]["position"]["array"].data) // 12
+        assert free["vertices"] == colliding["vertices"] == sent
+
+
+def test_robot_is_visible(live: tuple[Visualizer, Any]) -> None:
+    _, page = live
+    shown = capture(page)
+    hide = f"(v) => {{ ({_FIND})(['meshcat', 'spm']).object.visible = v; viewer.set_dirty(); }}"
+    page.evaluate(hide, False)
+    try:
+        hidden = capture(page)
+    finally:
+        page.evaluate(hide, True)
+    changed = np.any(np.abs(shown - hidden) > 8, axis=-1)
+    assert changed.mean() > TOL["robot_pixels"], f"the robot covers {changed.mean():.1%}"
+    # the robot is in the middle of the view, not cut by its edges
+    rows, cols = np.nonzero(changed)
+    height, width = changed.shape
+    assert rows.min() > 0 and rows.max() < height - 1 and cols.min() > 0 and cols.max() < width - 1
+    assert abs(0.5 * (rows.min() + rows.max()) - height / 2) < 0.1 * height
+
+
+def test_display_moves_link_nodes_to_pinocchio_placements(live: tuple[Visualizer, Any]) -> None:
+    viz, page = live
+    show(viz, page, np.radians(DEMO_DEG))  # waits for every link's matrix to match
+    q = viz.robot.configuration(np.radians(DEMO_DEG))
+    for name in LINK_NAMES:
+        expected = viz.robot.placement(q, name)
+        np.testing.assert_allclose(
+            node_matrix(page, link_path(name)), expected.homogeneous, atol=TOL["matrix"]
+        )
+        local, world = page.evaluate(_VERTEX, name)
+        np.testing.assert_allclose(world, expected.act(np.array(local)), atol=TOL["matrix"])
+        assert np.linalg.norm(local) > 0.03  # a point away from O: rotation errors show
+    platform = node_matrix(page, f"{ROOT}/overlays/platform_frame")
+    fk = spm.forward_kinematics(np.radians(DEMO_DEG))
+    np.testing.assert_allclose(platform[:3, :3], fk.R, atol=TOL["matrix"])
+
+
+def test_colliding_links_are_black(live: tuple[Visualizer, Any]) -> None:
+    viz, page = live
+    q = colliding_q(viz.robot)
+    pairs = show(viz, page, q)
+    black = {name for pair in pairs for name in pair}
+    assert {"proximal_2", "proximal_3"} <= black
+    state = page.evaluate(_LINK_STATE, list(LINK_NAMES))
+    for name in LINK_NAMES:
+        visible = state[name]["colliding" if name in black else "free"]
+        hidden = state[name]["free" if name in black else "colliding"]
+        assert visible["visible"] and not hidden["visible"]
+    colliding_image = capture(page)
+    show(viz, page, np.radians(DEMO_DEG))
+    safe_image = capture(page)
+    state = page.evaluate(_LINK_STATE, list(LINK_NAMES))
+    assert not any(state[name]["colliding"]["visible"] for name in LINK_NAMES)
+    assert dark_pixels(colliding_image) > 500
+    assert dark_pixels(safe_image) < 20
+    # in the home mode, too
+    pairs = show(viz, page, np.radians(HOME_COLLIDING_DEG))
+    assert ("proximal_2", "proximal_3") in pairs
+    show(viz, page, np.radians(DEMO_DEG))
+
+
+def test_exported_html_renders_the_same_offline(
+    live: tuple[Visualizer, Any], browser: Any, tmp_path: Path
+) -> None:
+    viz, page = live
+    show(viz, page, colliding_q(viz.robot))
+    served = capture(page)
+    offline, blocked = open_offline(browser, viz.save_html(tmp_path / "scene.html"))
+    try:
+        saved = capture(offline)
+        for name in LINK_NAMES:
+            np.testing.assert_allclose(
+                node_matrix(offline, link_path(name)),
+                node_matrix(page, link_path(name)),
+                atol=TOL["matrix"],
+            )
+    finally:
+        offline.close()
+        show(viz, page, np.radians(DEMO_DEG))
+    assert blocked == [], f"the saved page asked the network for {blocked}"
+    same = np.all(np.abs(served - saved) <= 8, axis=-1).mean()
+    assert same >= TOL["same_pixels"], f"only {same:.2%} of the pixels agree"
+    assert dark_pixels(saved) > 500  # the black links are in the file, too
+
+
+def test_animation_seeks_to_the_right_pose(browser: Any, robot: SPMRobot, tmp_path: Path) -> None:
+    viz = Visualizer(robot)
+    path = np.linspace(0.0, 1.0, 11)[:, None] * np.radians(HOME_COLLIDING_DEG)
+    motion = viz.animate(path, dt=0.1)
+    assert motion.colliding_samples, "the motion should end in a collision"
+    page, blocked = open_offline(browser, viz.save_html(tmp_path / "motion.html"))
+    try:
+        for k in (0, 4, 7, 10):
+            assert page.evaluate(_SEEK, float(motion.times[k])) > 0
+            for name in LINK_NAMES:
+                np.testing.assert_allclose(
+                    node_matrix(page, link_path(name)),
+                    robot.placement(motion.q[k], name).homogeneous,
+                    atol=TOL["matrix"],
+                    err_msg=f"{name} at sample {k}",
+                )
+            state = page.evaluate(_LINK_STATE, list(LINK_NAMES))
+            black = {name for pair in motion.collisions[k] for name in pair}
+            assert {n for n in LINK_NAMES if state[n]["colliding"]["visible"]} == black
+            assert {n for n in LINK_NAMES if not state[n]["free"]["visible"]} == black
+        # half way between two samples, the platform is between their poses
+        page.evaluate(_SEEK, float(0.5 * (motion.times[3] + motion.times[4])))
+        middle = node_matrix(page, link_path("proximal_3"))[:3, :3]
+        before, after = (robot.placement(motion.q[k], "proximal_3").rotation for k in (3, 4))
+        gap = np.linalg.norm(before - after)
+        assert np.linalg.norm(middle - before) < gap and np.linalg.norm(middle - after) < gap
+    finally:
+        page.close()
+    assert blocked == []
+
+
+def test_screenshot_of_a_saved_scene(browser: Any, robot: SPMRobot, tmp_path: Path) -> None:
+    from PIL import Image
+
+    viz = Visualizer(robot)
+    viz.display(np.radians(DEMO_DEG))
+    html = viz.save_html(tmp_path / "demo.html")
+    png = screenshot(html, tmp_path / "demo.png", size=(320, 240), browser=browser)
+    with Image.open(png) as image:
+        assert image.size == (320, 240)
+        pixels = np.asarray(image.convert("RGB"), dtype=np.int16)
+    # some pixels have about the colour of leg 2's proximal link (orange)
+    orange = np.all(np.abs(pixels - 255 * np.array(LINK_COLORS["proximal_2"][:3])) < 60, axis=-1)
+    assert orange.sum() > 50
+    with pytest.raises(spm.InputError):
+        screenshot(html, tmp_path / "bad.png", size=(0, 240), browser=browser)
+    with pytest.raises(FileNotFoundError):
+        screenshot(tmp_path / "missing.html", tmp_path / "bad.png", browser=browser)
