@@ -311,12 +311,19 @@ def bench_peer(
 ) -> dict[str, Any]:
     """least_squares along the first points of the 1 degree walk, warm-started."""
     peer = PeerResidual(loop)
-    tight = {"xtol": PEER_TOL, "ftol": PEER_TOL, "gtol": PEER_TOL}
     variants: dict[str, Callable[[FloatArray], Any]] = {
         "default": lambda x0: least_squares(peer.residual, x0),
-        "default_tight": lambda x0: least_squares(peer.residual, x0, **tight),
+        "default_tight": lambda x0: least_squares(
+            peer.residual, x0, xtol=PEER_TOL, ftol=PEER_TOL, gtol=PEER_TOL
+        ),
         "lm_exact_jacobian_tight": lambda x0: least_squares(
-            peer.residual, x0, jac=peer.jacobian, method="lm", **tight
+            peer.residual,
+            x0,
+            jac=peer.jacobian,
+            method="lm",
+            xtol=PEER_TOL,
+            ftol=PEER_TOL,
+            gtol=PEER_TOL,
         ),
     }
     out: dict[str, Any] = {

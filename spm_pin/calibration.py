@@ -1961,9 +1961,9 @@ def calibrate(
             solution: OptimizeResult = least_squares(
                 fun,
                 z,
-                jac=jac if jacobian == "analytic" else jacobian,
+                jac=jac if jacobian == "analytic" else jacobian,  # type: ignore[arg-type]
                 method="trf",
-                loss=loss,
+                loss=loss,  # type: ignore[arg-type]
                 f_scale=f_scale,
                 max_nfev=max_nfev,
                 x_scale=1.0,

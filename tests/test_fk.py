@@ -37,6 +37,8 @@ TOL = {
     "invariance": 1e-10,
     # Signs of b_ii and det A are compared only when |value| exceeds this.
     "sign": 1e-8,
+    # One input (the float fast path) vs the same input in a batch [max |R - R'|].
+    "single_vs_batch": 1e-13,
 }
 
 BATCH = 128
@@ -349,4 +351,23 @@ def test_batch_shapes_are_kept(design: spm.SPMDesign) -> None:
     one = spm.forward_kinematics(theta[0, 0, 0], design)
     assert one.R.shape == (3, 3)
     assert one.reachable.shape == ()
-    np.testing.assert_allclose(one.R, fk.R[0, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(one.R, fk.R[0, 0, 0], atol=TOL["single_vs_batch"])
+
+
+@pytest.mark.parametrize("name", DESIGN_NAMES)
+def test_single_input_equals_the_batch(name: str) -> None:
+    """One input takes a float fast path; it gives the batch answer, reachable or not."""
+    design = get_design(name)
+    rng = np.random.default_rng(11)
+    theta = np.concatenate(
+        [random_inputs(rng, 300), reachable_inputs(design, rng, 300), np.zeros((1, 3))]
+    )
+    batch = spm.forward_kinematics(theta, design)
+    for k, item in enumerate(theta):
+        one = spm.forward_kinematics(item, design)
+        assert bool(one.reachable) == bool(batch.reachable[k]), item
+        if batch.reachable[k]:
+            np.testing.assert_allclose(one.R, batch.R[k], atol=TOL["single_vs_batch"])
+            assert one.residual <= 1e-12
+        else:
+            assert np.isnan(one.R).all()

@@ -50,6 +50,7 @@ from ._common import (
     proximal_axes,
     rotation_about,
 )
+from ._fk_single import home_rotation
 
 __all__ = [
     "MAX_ASSEMBLY_MODES",
@@ -579,7 +580,21 @@ def forward_kinematics(
     local_ref = None
     if ref_flat is not None:
         local_ref = ref_flat if turn is None else np.swapaxes(turn, -1, -2) @ ref_flat
-    R, done = _home_newton(reduced, design, local_ref)
+    single = None
+    if local_ref is None and reduced.shape[0] == 1:  # one input: the float fast path
+        single = home_rotation(
+            reduced[0].tolist(),
+            design,
+            _NEWTON_STEPS_FAST,
+            _POLISH_EXTRA,
+            _POLISHED,
+            RESIDUAL_TOL,
+            _SIGN_TOL,
+        )
+    if single is not None:
+        R, done = np.array(single)[None], np.ones(1, dtype=bool)
+    else:
+        R, done = _home_newton(reduced, design, local_ref)
     if not np.all(done):
         rest = np.nonzero(~done)[0]
         out = _solve_all_flat(reduced[rest], design, home_only=True)
