@@ -59,10 +59,17 @@ are settings (:class:`JointConvention`)::
     # spm-pin calibration readings
     # ticks_per_turn = 4096
     # direction = 1, 1, 1
-    # zero_offset_ticks = 2048, 2048, 2048
+    # zero_offset = 2048, 2048, 2048
     # gear_ratio = 1, 1, 1
     pose,servo1_ticks,servo2_ticks,servo3_ticks,qw,qx,qy,qz
     1,2071,2113,1993,0.99,0.01,-0.12,0.03
+
+``direction``, ``zero_offset`` [counts] and ``gear_ratio`` are the keys, and the
+convention, of the ``[[joints]]`` tables of a servo configuration
+(:class:`spm_pin.hardware.HardwareConfig`); settings the file does not give come from
+the ``joints`` argument of :func:`load_readings` (e.g.
+:meth:`JointConvention.from_servo_config`), else the defaults of :class:`JointConvention`.
+``zero_offset_ticks``, the older name of ``zero_offset``, is still read.
 
 Columns (any order):
 
@@ -100,6 +107,8 @@ from .rotations import matrix_from_quaternion, matrix_from_rpy, quaternion_from_
 if TYPE_CHECKING:  # pragma: no cover
     from scipy.optimize import OptimizeResult
 
+    from .hardware.config import HardwareConfig
+
 __all__ = [
     "DEFAULT_PARAMETERS",
     "PARAMETER_GROUPS",
@@ -128,7 +137,8 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
 
-#: Encoder counts per turn of the Dynamixel XM540 (0.088 deg per count).
+#: Encoder counts per turn of the Dynamixel XM540 (0.088 deg per count): the pulses
+#: per servo turn of :mod:`spm_pin.hardware`.
 TICKS_PER_TURN = 4096
 
 #: Every parameter that can be identified, in the order in which they are kept free
@@ -222,12 +232,20 @@ class JointConvention:
     ``reading_i [rad] = direction_i * (ticks_i - zero_offset_ticks_i) * 2 pi /
     (ticks_per_turn * gear_ratio_i)``. These are the per-joint settings of a servo
     configuration: direction +1 or -1, gear ratio (servo turns per input-shaft turn,
-    1 for the prototype's 1:1 gears) and the zero offset in counts.
+    1 for the prototype's 1:1 gears) and the zero offset in counts. It is the formula
+    of :class:`spm_pin.hardware.JointConfig` (``theta_i = direction * (pulses -
+    zero_offset - 4096 k_i) * 2 pi / 4096 / gear_ratio``) for ticks_per_turn = 4096,
+    with the whole servo turns k_i left in the reading. With 1:1 gears they change
+    nothing (a servo turn is a turn of the input, and the kinematics repeat every
+    turn); with other gears, take all readings without the servos losing their turn
+    count (no power cycle or reboot). In a readings file the zero offset is the
+    setting ``zero_offset``, as in the servo configuration.
 
     Attributes:
         ticks_per_turn: Encoder counts per servo turn (4096 for the XM540).
         direction: +1 or -1 per servo.
-        zero_offset_ticks: Counts at which the input angle reads zero.
+        zero_offset_ticks: Counts at which the input angle reads zero (need not be
+            whole: :meth:`with_offsets` gives the exact value).
         gear_ratio: Servo turns per input-shaft turn (> 0).
     """
 
@@ -301,6 +319,43 @@ class JointConvention:
         return dataclasses.replace(
             self, zero_offset_ticks=(float(zero[0]), float(zero[1]), float(zero[2]))
         )
+
+    @classmethod
+    def from_servo_config(cls, config: HardwareConfig) -> JointConvention:
+        """The convention of a servo configuration's joints (4096 pulses per turn).
+
+        Readings of the servos' Present Position [pulses] convert to the very angles
+        the hardware layer uses (up to whole turns); load them with
+        ``load_readings(path, joints=JointConvention.from_servo_config(config))``.
+
+        Args:
+            config: A :class:`spm_pin.hardware.HardwareConfig`.
+        """
+        hardware_config = _hardware_config_class()
+        if not isinstance(config, hardware_config):
+            raise InputError(
+                f"config must be a spm_pin.hardware.HardwareConfig, got {type(config).__name__}",
+                argument="config",
+                value=config,
+            )
+        u1, u2, u3 = config.joints
+        return cls(
+            ticks_per_turn=TICKS_PER_TURN,
+            direction=(u1.direction, u2.direction, u3.direction),
+            zero_offset_ticks=(float(u1.zero_offset), float(u2.zero_offset), float(u3.zero_offset)),
+            gear_ratio=(float(u1.gear_ratio), float(u2.gear_ratio), float(u3.gear_ratio)),
+        )
+
+
+def _hardware_config_class() -> type[HardwareConfig]:
+    """spm_pin.hardware.HardwareConfig, imported when first needed.
+
+    The hardware package imports its SDK (dynamixel-sdk, the ``hardware`` extra) only
+    when a port is opened, so the configuration works without it.
+    """
+    from .hardware.config import HardwareConfig
+
+    return HardwareConfig
 
 
 def _triple(value: Any, name: str) -> tuple[float, float, float]:
@@ -496,7 +551,7 @@ class Readings:
             out.write(f"# {line}\n")
         out.write(f"# ticks_per_turn = {j.ticks_per_turn}\n")
         out.write(f"# direction = {', '.join(str(d) for d in j.direction)}\n")
-        out.write(f"# zero_offset_ticks = {', '.join(_fmt(z) for z in j.zero_offset_ticks)}\n")
+        out.write(f"# zero_offset = {', '.join(_fmt(z) for z in j.zero_offset_ticks)}\n")
         out.write(f"# gear_ratio = {', '.join(_fmt(g) for g in j.gear_ratio)}\n")
         servo = [f"servo{i}_{unit}" for i in (1, 2, 3)]
         if self.kind == "quaternion":
@@ -536,7 +591,16 @@ _SERVO_COLUMN = re.compile(r"^servo([123])_(.+)$")
 _EULER_COLUMN = re.compile(r"^(roll|pitch|yaw)_(.+)$")
 _QUATERNION = ("qw", "qx", "qy", "qz")
 _AXES = tuple(f"v{i}_{c}" for i in (1, 2, 3) for c in "xyz")
-_SETTINGS = ("ticks_per_turn", "direction", "zero_offset_ticks", "gear_ratio")
+_SETTINGS = ("ticks_per_turn", "direction", "zero_offset", "gear_ratio")
+#: Older names of settings, still read.
+_SETTING_ALIASES = {"zero_offset_ticks": "zero_offset"}
+#: JointConvention field of each setting.
+_SETTING_FIELDS = {
+    "ticks_per_turn": "ticks_per_turn",
+    "direction": "direction",
+    "zero_offset": "zero_offset_ticks",
+    "gear_ratio": "gear_ratio",
+}
 
 
 def _allowed_columns() -> str:
@@ -547,12 +611,19 @@ def _allowed_columns() -> str:
     )
 
 
-def parse_readings(text: str, *, source: str | None = None) -> Readings:
+def parse_readings(
+    text: str, *, source: str | None = None, joints: JointConvention | None = None
+) -> Readings:
     """Parse readings CSV text (format in the module docstring).
 
     Args:
         text: The file's content.
         source: Name used in error messages (the path).
+        joints: The encoder convention for the settings the file does not give
+            (``ticks_per_turn``, ``direction``, ``zero_offset``, ``gear_ratio``; each
+            one the file gives wins), e.g. :meth:`JointConvention.from_servo_config`.
+            Default: :class:`JointConvention` (4096 per turn, direction +1, zero at 0
+            counts, gear ratio 1).
 
     Raises:
         FileFormatError: with ``error.line`` (1-based) and the column: unknown or
@@ -579,7 +650,7 @@ def parse_readings(text: str, *, source: str | None = None) -> Readings:
                     path=source,
                     line=number,
                 )
-            key = match.group(1)
+            key = _SETTING_ALIASES.get(match.group(1), match.group(1))
             if key not in _SETTINGS:
                 raise FileFormatError(
                     f"unknown setting {key!r}; allowed: {list(_SETTINGS)}", path=source, line=number
@@ -600,7 +671,13 @@ def parse_readings(text: str, *, source: str | None = None) -> Readings:
             rows.append((number, fields))
     if header is None:
         raise FileFormatError("no header row: the file holds no columns", path=source)
-    joints = _parse_settings(settings, setting_lines, source)
+    if joints is not None and not isinstance(joints, JointConvention):
+        raise InputError(
+            f"joints must be a JointConvention, got {type(joints).__name__}",
+            argument="joints",
+            value=joints,
+        )
+    convention = _parse_settings(settings, setting_lines, source, joints)
     columns = _parse_header(header, header_line, source)
     if not rows:
         raise FileFormatError(
@@ -638,7 +715,7 @@ def parse_readings(text: str, *, source: str | None = None) -> Readings:
                 path=source,
                 line=int(lines[k]),
             )
-        theta = joints.ticks_to_angle(servo)
+        theta = convention.ticks_to_angle(servo)
     elif columns.servo_unit == "deg":
         theta = np.radians(servo)
     else:
@@ -652,15 +729,15 @@ def parse_readings(text: str, *, source: str | None = None) -> Readings:
         kind=columns.kind,
         lines=lines,
         labels=labels,
-        joints=joints,
+        joints=convention,
         servo_unit=columns.servo_unit,
         source=source,
         extra=extra,
     )
 
 
-def load_readings(path: str | Path) -> Readings:
-    """Read a readings CSV file (see :func:`parse_readings`)."""
+def load_readings(path: str | Path, *, joints: JointConvention | None = None) -> Readings:
+    """Read a readings CSV file (see :func:`parse_readings`, also for ``joints``)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -668,7 +745,7 @@ def load_readings(path: str | Path) -> Readings:
         raise FileFormatError(f"cannot read readings file: {exc.strerror}", path=str(path)) from exc
     except UnicodeDecodeError as exc:
         raise FileFormatError("readings file is not UTF-8 text", path=str(path)) from exc
-    return parse_readings(text, source=str(path))
+    return parse_readings(text, source=str(path), joints=joints)
 
 
 def _number(field: str, column: str, line: int, source: str | None) -> float:
@@ -690,10 +767,14 @@ def _number(field: str, column: str, line: int, source: str | None) -> float:
 
 
 def _parse_settings(
-    settings: Mapping[str, str], lines: Mapping[str, int], source: str | None
+    settings: Mapping[str, str],
+    lines: Mapping[str, int],
+    source: str | None,
+    default: JointConvention | None = None,
 ) -> JointConvention:
     kwargs: dict[str, Any] = {}
     for key, text in settings.items():
+        field = _SETTING_FIELDS[key]
         parts = [p for p in re.split(r"[,\s]+", text) if p]
         try:
             numbers = [float(p) for p in parts]
@@ -708,7 +789,7 @@ def _parse_settings(
                     path=source,
                     line=lines[key],
                 )
-            kwargs[key] = int(numbers[0])
+            kwargs[field] = int(numbers[0])
         else:
             if len(numbers) not in (1, 3):
                 raise FileFormatError(
@@ -716,12 +797,20 @@ def _parse_settings(
                     path=source,
                     line=lines[key],
                 )
-            kwargs[key] = tuple(numbers) if len(numbers) == 3 else (numbers[0],) * 3
+            kwargs[field] = tuple(numbers) if len(numbers) == 3 else (numbers[0],) * 3
+    base = default or JointConvention()
+    tpt = kwargs.get("ticks_per_turn", base.ticks_per_turn)
+    if "zero_offset_ticks" not in kwargs and tpt != base.ticks_per_turn:
+        # The default's zero offsets, in the file's counts.
+        kwargs["zero_offset_ticks"] = tuple(
+            z * tpt / base.ticks_per_turn for z in base.zero_offset_ticks
+        )
     try:
-        return JointConvention(**kwargs)
+        return dataclasses.replace(base, **kwargs)
     except InputError as exc:
-        key = exc.argument or ""
-        raise FileFormatError(f"setting {exc}", path=source, line=lines.get(key)) from exc
+        key = next((k for k, f in _SETTING_FIELDS.items() if f == exc.argument), "")
+        message = str(exc).replace("zero_offset_ticks", "zero_offset")
+        raise FileFormatError(f"setting {message}", path=source, line=lines.get(key)) from exc
 
 
 @dataclasses.dataclass
@@ -1563,6 +1652,75 @@ class CalibrationResult:
         """The readings' encoder convention with the identified zero offsets."""
         return self.readings.joints.with_offsets(self.parameters.offsets)
 
+    @property
+    def zero_offsets(self) -> FloatArray:
+        """Identified zero offsets [pulses, 4096 per turn] (3,), not rounded.
+
+        The servos' Present Position at which each input is at the model's zero: the
+        ``zero_offset`` of a servo configuration (:meth:`servo_config` rounds them). For
+        readings of 4096 counts per turn these are ``joints.zero_offset_ticks``.
+        """
+        joints = self.joints
+        result: FloatArray = (
+            np.asarray(joints.zero_offset_ticks) * TICKS_PER_TURN / joints.ticks_per_turn
+        )
+        return result
+
+    def servo_config(self, config: HardwareConfig | str | Path) -> HardwareConfig:
+        """A servo configuration with the identified zero offsets (whole pulses).
+
+        Everything else in ``config`` is kept, and the copy is validated like any
+        :class:`spm_pin.hardware.HardwareConfig` (write it with ``.save(path)``). The
+        readings' directions and gear ratios must be the configuration's: load them
+        with ``joints=JointConvention.from_servo_config(config)``, or give the same
+        settings in the file. Their zero offsets may be anything (the old
+        configuration's, say): the identified ones are absolute. Check :attr:`ok`
+        first: offsets the readings cannot identify keep their starting values.
+
+        Needs only the core of :mod:`spm_pin.hardware` (not its SDK).
+
+        Args:
+            config: The configuration the readings were taken with, or its file.
+
+        Raises:
+            InputError: ``config`` is no configuration, or its directions or gear
+                ratios differ from the readings'.
+            FileFormatError: the configuration file is malformed.
+        """
+        hardware_config = _hardware_config_class()
+        if isinstance(config, (str, Path)):
+            config = hardware_config.load(config)
+        if not isinstance(config, hardware_config):
+            raise InputError(
+                f"config must be a spm_pin.hardware.HardwareConfig or its file, got "
+                f"{type(config).__name__}",
+                argument="config",
+                value=config,
+            )
+        readings = self.readings.joints
+        for i, joint in enumerate(config.joints):
+            direction, gear = readings.direction[i], readings.gear_ratio[i]
+            if joint.direction != direction or not math.isclose(
+                joint.gear_ratio, gear, rel_tol=1e-9
+            ):
+                raise InputError(
+                    f"joint {joint.joint}: the readings were converted with direction "
+                    f"{direction:+d} and gear ratio {_fmt(gear)}, the servo configuration has "
+                    f"direction {joint.direction:+d} and gear ratio {_fmt(joint.gear_ratio)}; "
+                    "the readings file must give the configuration's direction and "
+                    "gear_ratio, or none (then the configuration's apply, by loading it with "
+                    "joints=JointConvention.from_servo_config(config), as spm calibrate "
+                    "--servo-config does)",
+                    argument="config",
+                    value=config,
+                )
+        zero = self.zero_offsets
+        u1, u2, u3 = (
+            dataclasses.replace(joint, zero_offset=round(float(zero[i])))
+            for i, joint in enumerate(config.joints)
+        )
+        return config.replace(joints=(u1, u2, u3))
+
     def as_dict(self) -> dict[str, Any]:
         """Plain data (degrees) for JSON."""
         lines = self.readings.lines
@@ -1591,7 +1749,9 @@ class CalibrationResult:
         }
 
     def _encoder_dict(self) -> dict[str, Any]:
+        """The zero offsets in the servo configuration's terms (pulses, 4096 per turn)."""
         joints = self.joints
+        zero = self.zero_offsets
         std = [self._offset_std(i) for i in range(3)]
         return {
             "ticks_per_turn": joints.ticks_per_turn,
@@ -1599,8 +1759,8 @@ class CalibrationResult:
                 f"u_{i + 1}": {
                     "direction": joints.direction[i],
                     "gear_ratio": joints.gear_ratio[i],
-                    "zero_offset_ticks": round(joints.zero_offset_ticks[i]),
-                    "zero_offset_ticks_exact": joints.zero_offset_ticks[i],
+                    "zero_offset": round(float(zero[i])),
+                    "zero_offset_exact": float(zero[i]),
                     "offset_deg": float(self.offsets_deg[i]),
                     "offset_std_deg": math.degrees(std[i]) if math.isfinite(std[i]) else None,
                 }
@@ -1613,36 +1773,43 @@ class CalibrationResult:
         return next((e.std for e in self.estimates if e.name == name), math.inf)
 
     def offsets_toml(self) -> str:
-        """The identified encoder zero offsets as TOML for a servo configuration.
+        """The identified zero offsets as the ``[[joints]]`` tables of a servo configuration.
 
-        One table per actuated joint (``[joints.u_1]`` ...), with ``direction``,
-        ``gear_ratio`` and ``zero_offset_ticks`` (whole counts; the exact value and the
-        offset in degrees alongside), for the convention
-        ``theta_i [deg] = direction_i * (ticks_i - zero_offset_ticks_i) * 360 /
-        (ticks_per_turn * gear_ratio_i)``.
+        The keys of :class:`spm_pin.hardware.HardwareConfig`: ``joint``, ``direction``,
+        ``gear_ratio`` and ``zero_offset`` (whole pulses, 4096 per turn), for
+        ``theta_i = direction * (pulses - zero_offset) * 360 / 4096 / gear_ratio`` [deg];
+        only ``servo_id`` is missing. The exact value and the identified offset [deg]
+        are comments. :meth:`servo_config` writes a whole configuration instead.
         """
         data = self._encoder_dict()
         source = self.readings.source or "readings"
         lines = [
-            f"# Encoder zero offsets identified by spm-pin calibration from {source}.",
-            "# theta_i [deg] = direction_i * (ticks_i - zero_offset_ticks_i) * 360",
-            "#                 / (ticks_per_turn * gear_ratio_i)",
-            "# is the model's input angle (0 at home). zero_offset_ticks replaces the value",
-            "# the readings were taken with; offset_deg is the identified change of zero.",
-            f"ticks_per_turn = {data['ticks_per_turn']}",
+            f"# Encoder zero offsets identified by spm-pin calibration from {source}:",
+            "# [[joints]] tables of a servo configuration (spm_pin.hardware.HardwareConfig).",
+            "# Copy each zero_offset into your configuration's table of the same joint, or",
+            "# paste the tables and add servo_id; spm calibrate --servo-config CONFIG.toml",
+            "# writes the whole configuration instead.",
+            "# theta_i [deg] = direction * (pulses - zero_offset) * 360 / 4096 / gear_ratio",
+            "# is the model's input angle (0 at home). Each comment gives the exact value",
+            "# and the identified offset: the change from the readings' zero.",
         ]
+        if data["ticks_per_turn"] != TICKS_PER_TURN:
+            lines.append(
+                f"# (the readings' {data['ticks_per_turn']} counts per turn are converted to "
+                f"{TICKS_PER_TURN} pulses per turn)"
+            )
         for name, joint in data["joints"].items():
+            std = joint["offset_std_deg"]
+            spread = "" if std is None else f" +- {std:.4f}"
             lines += [
                 "",
-                f"[joints.{name}]",
+                "[[joints]]",
+                f'joint = "{name}"',
                 f"direction = {joint['direction']}",
-                f"gear_ratio = {_fmt(joint['gear_ratio'])}",
-                f"zero_offset_ticks = {joint['zero_offset_ticks']}",
-                f"zero_offset_ticks_exact = {joint['zero_offset_ticks_exact']:.4f}",
-                f"offset_deg = {joint['offset_deg']:.6f}",
+                f"gear_ratio = {float(joint['gear_ratio'])!r}",
+                f"zero_offset = {joint['zero_offset']}  # pulses (exact "
+                f"{joint['zero_offset_exact']:.2f}); offset {joint['offset_deg']:+.4f}{spread} deg",
             ]
-            if joint["offset_std_deg"] is not None:
-                lines.append(f"offset_std_deg = {joint['offset_std_deg']:.6f}")
         return "\n".join(lines) + "\n"
 
     def report(self) -> str:
@@ -1686,12 +1853,12 @@ class CalibrationResult:
         if ident.ok:
             out.append("  every parameter is identified")
         enc = self._encoder_dict()
-        out += ["", f"encoder zero offsets (ticks_per_turn = {enc['ticks_per_turn']}):"]
+        out += ["", "encoder zero offsets (servo configuration, 4096 pulses per turn):"]
         for name, j in enc["joints"].items():
             std = "" if j["offset_std_deg"] is None else f" +- {j['offset_std_deg']:.4f}"
             out.append(
-                f"  {name}: offset {j['offset_deg']:+.4f}{std} deg -> zero_offset_ticks "
-                f"{j['zero_offset_ticks']} ({j['zero_offset_ticks_exact']:.2f}), direction "
+                f"  {name}: offset {j['offset_deg']:+.4f}{std} deg -> zero_offset "
+                f"{j['zero_offset']} ({j['zero_offset_exact']:.2f}), direction "
                 f"{j['direction']:+d}, gear ratio {_fmt(j['gear_ratio'])}"
             )
         mount = self.parameters.mount

@@ -10,14 +10,15 @@ Commands::
     spm ik (--matrix R11 .. R33 | --quaternion W X Y Z | --rpy ROLL PITCH YAW)
            [--mode LABEL|INDEX] [--all] [--json] [--design FILE]
     spm design [--preset NAME | --design FILE] [--out FILE]
-    spm demo [--out DIR] [--json]
+    spm demo [--out DIR] [--quick] [--workspace-step DEG] [--quiet] [--json]
     spm export [--design FILE] [--out DIR] [--json]
     spm show T1 T2 T3 [--html FILE] [--mode LABEL] [--axes] [--frame] [--json] [--design FILE]
     spm animate [--from T1 T2 T3] --to T1 T2 T3 [--samples N] [--duration S] --html FILE
                 [--axes] [--frame] [--json] [--design FILE]
     spm servo emulate [--ids ID ...] | status | move T1 T2 T3 | follow  (see spm servo -h)
     spm calibrate READINGS.csv [--out FILE] [--design FILE] [--parameters LIST] [--force]
-                [--report FILE] [--plot FILE | --no-plot] [--offsets FILE] [--json]
+                [--report FILE] [--plot FILE | --no-plot] [--offsets FILE]
+                [--servo-config FILE [--servo-out FILE]] [--json]
     spm plan-poses N [--out FILE] [--design FILE] [--parameters LIST] [--seed S] [--json]
     spm synth-readings [N] --out FILE [--poses FILE] [--seed S] [--unit UNIT] [--json]
     spm torques [--from T1 T2 T3] (--to T1 T2 T3 | --file CSV) [--duration S] [--rate HZ]
@@ -36,7 +37,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-import functools
 import json
 import math
 import os
@@ -54,12 +54,10 @@ from .design import SPMDesign
 from .errors import SPMError
 from .kinematics import (
     WORKING_MODE_LABELS,
-    FKResult,
     forward_kinematics,
     forward_kinematics_all,
     inverse_kinematics,
     jacobian,
-    track,
 )
 from .kinematics._common import as_rotation, mode_label
 from .kinematics.fk import satisfies_home_rule
@@ -71,14 +69,10 @@ from .rotations import (
 )
 
 __all__ = [
-    "DEMO_SECTIONS",
     "FK_SOLVERS",
-    "DemoContext",
-    "DemoSection",
     "FKSolution",
     "build_parser",
     "collide_record",
-    "demo_record",
     "fk_all_record",
     "fk_record",
     "ik_record",
@@ -461,213 +455,20 @@ def _run_design(args: argparse.Namespace) -> int:
 
 
 # ------------------------------------------------------------------------------ demo
-#: The published study's demonstration input and its colliding input [deg].
-DEMO_THETA_DEG = (60.0, 90.0, 120.0)
-DEMO_COLLIDING_THETA_DEG = (60.0, 90.0, 220.0)
-#: Samples of the motion from home to the demonstration input.
-DEMO_SAMPLES = 25
-#: Samples whose platform axes the text output shows.
-_DEMO_SHOWN_SAMPLES = (0, 6, 12, 18, 24)
-
-
-@dataclasses.dataclass(frozen=True)
-class DemoContext:
-    """What every demo section works from; the defaults are the published study."""
-
-    design: SPMDesign = dataclasses.field(default_factory=SPMDesign.prototype)
-    theta_deg: tuple[float, float, float] = DEMO_THETA_DEG
-    colliding_theta_deg: tuple[float, float, float] = DEMO_COLLIDING_THETA_DEG
-    samples: int = DEMO_SAMPLES
-
-    @property
-    def theta(self) -> FloatArray:
-        """The demonstration input [rad]."""
-        return np.radians(self.theta_deg)
-
-    @property
-    def colliding_theta(self) -> FloatArray:
-        """The study's colliding input [rad]."""
-        return np.radians(self.colliding_theta_deg)
-
-    @functools.cached_property
-    def home(self) -> FKResult:
-        """The home assembly mode at the demonstration input (solved once)."""
-        return forward_kinematics(self.theta, self.design)
-
-
-@dataclasses.dataclass(frozen=True)
-class DemoSection:
-    """One section of the demo: its JSON key, a title, the data and (optionally) a
-    shorter view of it for the text output."""
-
-    key: str
-    title: str
-    data: Record
-    text: Record | None = None
-
-
-def _demo_design(ctx: DemoContext) -> DemoSection:
-    d = ctx.design
-    data = {
-        "name": d.name,
-        "summary": d.summary(),
-        "alpha1_deg": math.degrees(d.alpha1),
-        "alpha2_deg": math.degrees(d.alpha2),
-        "beta_deg": math.degrees(d.beta),
-        "eta_deg": np.degrees(d.eta),
-        "coaxial": d.is_coaxial,
-    }
-    return DemoSection("design", "Design", data)
-
-
-def _demo_assembly_modes(ctx: DemoContext) -> DemoSection:
-    modes = forward_kinematics_all(ctx.theta, ctx.design)
-    count = int(modes.count)
-    labels = modes.labels
-    data = {
-        "theta_deg": ctx.theta_deg,
-        "count": count,
-        "modes": [
-            {
-                "label": labels[k],
-                "home": modes.home[k],
-                "residual": modes.residual[k],
-                "v": modes.v[k],
-            }
-            for k in range(count)
-        ],
-    }
-    return DemoSection("assembly_modes", "Every real assembly mode", data)
-
-
-def _demo_home_mode(ctx: DemoContext) -> DemoSection:
-    fk = ctx.home
-    data = {
-        "theta_deg": ctx.theta_deg,
-        "reachable": fk.reachable,
-        **_orientation(fk.R),
-        "v": fk.v,
-        "residual": fk.residual,
-    }
-    return DemoSection("home_mode", "The home assembly mode", data)
-
-
-def _demo_velocity(ctx: DemoContext) -> DemoSection:
-    jac = jacobian(ctx.theta, ctx.design, R=ctx.home.R)
-    data = {
-        "J": jac.J,
-        "det_a": jac.det_a,
-        "b": jac.b,
-        "dexterity": jac.dexterity,
-        "dexterity_ga": jac.dexterity_ga,
-        "singularity_margin": jac.singularity_margin,
-        "type_i_singular": jac.type_i,
-        "type_ii_singular": jac.type_ii,
-    }
-    return DemoSection("velocity", "Velocity kinematics: omega = J theta_dot", data)
-
-
-def _demo_inverse(ctx: DemoContext) -> DemoSection:
-    ik = inverse_kinematics(ctx.home.R, ctx.design)
-    error = np.degrees(np.max(np.abs(ik.theta - ctx.theta)))
-    data = {
-        "theta_deg": np.degrees(ik.theta),
-        "mode": ik.mode,
-        "b": ik.b,
-        "round_trip_error_deg": error,
-    }
-    return DemoSection("inverse", "Inverse kinematics of the home R", data)
-
-
-def _demo_motion(ctx: DemoContext) -> DemoSection:
-    path_deg = np.linspace(0.0, 1.0, ctx.samples)[:, None] * np.asarray(ctx.theta_deg)
-    path = np.radians(path_deg)
-    motion = track(path, ctx.design)
-    # Independent check: the home mode solved at every sample on its own.
-    home = forward_kinematics(path, ctx.design)
-    deviation = np.max(np.abs(motion.R - home.R))
-    samples = [
-        {
-            "theta_deg": path_deg[i],
-            "label": motion.labels[i],
-            "home": motion.home[i],
-            "v": motion.v[i],
-        }
-        for i in range(ctx.samples)
-    ]
-    summary = {
-        "samples": ctx.samples,
-        "all_home": bool(np.all(motion.home)),
-        "lost": bool(np.any(motion.lost)),
-        "subdivisions": motion.subdivisions,
-        "deviation_from_fk": deviation,
-    }
-    shown = [i for i in _DEMO_SHOWN_SAMPLES if i < ctx.samples]
-    text = {
-        **summary,
-        "shown": [{"sample": i, **samples[i]} for i in shown],
-    }
-    return DemoSection(
-        "motion",
-        f"Tracked motion from home to the input, {ctx.samples} samples",
-        {**summary, "path": samples},
-        text,
-    )
-
-
-def _demo_colliding_input(ctx: DemoContext) -> DemoSection:
-    modes = forward_kinematics_all(ctx.colliding_theta, ctx.design)
-    count = int(modes.count)
-    data = {
-        "theta_deg": ctx.colliding_theta_deg,
-        "home_mode_exists": bool(np.any(modes.home)),
-        "count": count,
-        "labels": modes.labels[:count],
-    }
-    return DemoSection("colliding_input", "The study's colliding input", data)
-
-
-#: The demo's sections, in order. A feature adds its section by appending a function
-#: ``DemoContext -> DemoSection`` here.
-DEMO_SECTIONS: list[Callable[[DemoContext], DemoSection]] = [
-    _demo_design,
-    _demo_assembly_modes,
-    _demo_home_mode,
-    _demo_velocity,
-    _demo_inverse,
-    _demo_motion,
-    _demo_colliding_input,
-]
-
-
-def demo_record(ctx: DemoContext | None = None) -> tuple[Record, list[str]]:
-    """The kinematic study of the prototype: its JSON record and its text lines."""
-    if ctx is None:
-        ctx = DemoContext()
-    record: Record = {"theta_deg": ctx.theta_deg}
-    where = ", ".join(f"{x:g}" for x in ctx.theta_deg)
-    lines = [f"spm-pin {__version__}: kinematic study of the {ctx.design.name} at [{where}] deg"]
-    for make_section in DEMO_SECTIONS:
-        section = make_section(ctx)
-        record[section.key] = section.data
-        lines += ["", f"== {section.title} ==", *_render(_plain(section.text or section.data))]
-    return _plain(record), lines
-
-
 def _run_demo(args: argparse.Namespace) -> int:
-    record, lines = demo_record()
-    written: Path | None = None
-    if args.out is not None:
-        directory = Path(args.out)
-        directory.mkdir(parents=True, exist_ok=True)
-        written = directory / "demo.json"
-        written.write_text(_dumps(record) + "\n", encoding="utf-8")
-    if args.json:
-        print(_dumps(record))
-    else:
-        print("\n".join(lines))
-        if written is not None:
-            print(f"\nwrote {written}")
+    # Imported here: the demo gathers every layer (Pinocchio, MuJoCo, meshcat, plots).
+    from .demo import DemoContext, run_demo
+
+    changes: Record = {"out": Path(args.out)}
+    if args.workspace_step is not None:
+        changes["workspace_step_deg"] = args.workspace_step
+    ctx = DemoContext.quick(**changes) if args.quick else DemoContext(**changes)
+    result = run_demo(ctx, progress="off" if args.quiet else "auto")
+    print(_dumps(result.record) if args.json else "\n".join(result.lines))
+    if result.failed_checks:  # the solvers disagree: exit status 1, like a failed test
+        failed = ", ".join(result.failed_checks)
+        print(f"spm: warning: cross-checks outside their tolerance: {failed}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -784,20 +585,26 @@ EXIT_NOT_IDENTIFIED = 1
 
 def _calibration_files(args: argparse.Namespace) -> dict[str, Path]:
     """Files that ``spm calibrate`` writes: explicit ones, and next to --out the report,
-    the offsets and the plot (``<stem>_report.txt``, ``_offsets.toml``, ``_residuals.png``)."""
+    the offsets (with --servo-config: the updated servo configuration) and the plot
+    (``<stem>_report.txt``, ``_offsets.toml`` or ``_servos.toml``, ``_residuals.png``)."""
     files: dict[str, Path] = {}
     if args.out is not None:
         out = Path(args.out)
         stem = out.with_suffix("")
-        files = {
-            "design": out,
-            "report": stem.with_name(stem.name + "_report.txt"),
-            "offsets": stem.with_name(stem.name + "_offsets.toml"),
-            "plot": stem.with_name(stem.name + "_residuals.png"),
-        }
-    for key in ("report", "offsets", "plot"):
-        if getattr(args, key) is not None:
-            files[key] = Path(getattr(args, key))
+        files = {"design": out, "report": stem.with_name(stem.name + "_report.txt")}
+        if args.servo_config is None:
+            files["offsets"] = stem.with_name(stem.name + "_offsets.toml")
+        else:
+            files["servos"] = stem.with_name(stem.name + "_servos.toml")
+        files["plot"] = stem.with_name(stem.name + "_residuals.png")
+    for key, option in (
+        ("report", "report"),
+        ("offsets", "offsets"),
+        ("servos", "servo_out"),
+        ("plot", "plot"),
+    ):
+        if getattr(args, option) is not None:
+            files[key] = Path(getattr(args, option))
     if args.no_plot:
         files.pop("plot", None)
     return files
@@ -811,7 +618,17 @@ def _run_calibrate(args: argparse.Namespace) -> int:
 
     if args.no_plot and args.plot is not None:
         raise _UsageError("--plot and --no-plot exclude each other")
-    readings = calibration.load_readings(args.readings)
+    if args.servo_out is not None and args.servo_config is None:
+        raise _UsageError("--servo-out needs --servo-config (the configuration to update)")
+    servo_config = None
+    joints = None
+    if args.servo_config is not None:
+        # The configuration alone: spm_pin.hardware imports its SDK only to open a port.
+        from .hardware.config import HardwareConfig
+
+        servo_config = HardwareConfig.load(args.servo_config)
+        joints = calibration.JointConvention.from_servo_config(servo_config)
+    readings = calibration.load_readings(args.readings, joints=joints)
     design = _design(args)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", calibration.IdentifiabilityWarning)
@@ -823,6 +640,8 @@ def _run_calibrate(args: argparse.Namespace) -> int:
             noise_deg=args.noise_deg,
             confidence=args.confidence,
         )
+    # Before anything is written: the readings must fit the configuration's joints.
+    servos = None if servo_config is None else result.servo_config(servo_config)
     files = _calibration_files(args)
     notes: list[str] = []
     if "plot" in files and args.plot is None and importlib.util.find_spec("matplotlib") is None:
@@ -838,13 +657,31 @@ def _run_calibrate(args: argparse.Namespace) -> int:
                 path.write_text(result.report(), encoding="utf-8")
             elif key == "offsets":
                 path.write_text(result.offsets_toml(), encoding="utf-8")
+            elif key == "servos":
+                assert servos is not None  # --servo-out needs --servo-config
+                servos.save(path)
             else:
                 result.plot_residuals(path)
             written[key] = str(path)
+    record = {**result.as_dict(), "files": written, "notes": notes}
+    update = ""
+    if servo_config is not None and servos is not None:
+        before = [j.zero_offset for j in servo_config.joints]
+        after = [j.zero_offset for j in servos.joints]
+        record["servo_config"] = {
+            "from": str(args.servo_config),
+            "zero_offset_before": before,
+            "zero_offset": after,
+        }
+        update = (
+            f"servo configuration {args.servo_config}: zero_offset {before} -> {after} [pulses]"
+        )
     if args.json:
-        print(_dumps({**result.as_dict(), "files": written, "notes": notes}))
+        print(_dumps(record))
     else:
         print(result.report(), end="")
+        if update:
+            print(update)
         for key, path_text in written.items():
             print(f"wrote {key}: {path_text}")
         for note in notes:
@@ -950,7 +787,9 @@ def _add_calibration_parsers(commands: Any) -> None:
         "positions and a sensor orientation per pose; see docs/calibration.md). Prints a "
         "report; with --out writes the calibrated design (which every command takes with "
         "--design), FILE_report.txt, FILE_offsets.toml (encoder zero offsets for the servo "
-        "configuration) and FILE_residuals.png. Exit status 1, nothing written, when the "
+        "configuration; with --servo-config CONFIG.toml instead FILE_servos.toml, that "
+        "configuration with the identified zero offsets, for spm servo --config) and "
+        "FILE_residuals.png. Exit status 1, nothing written, when the "
         "readings cannot identify the parameters (unless --force). Needs the calibration "
         "extra (scipy); the plot needs the plot extra (matplotlib).",
     )
@@ -986,7 +825,23 @@ def _add_calibration_parsers(commands: Any) -> None:
     calibrate.add_argument("--plot", metavar="FILE", help="write the residual plot (PNG) to FILE")
     calibrate.add_argument("--no-plot", action="store_true", help="write no residual plot")
     calibrate.add_argument(
-        "--offsets", metavar="FILE", help="write the encoder zero offsets (TOML) to FILE"
+        "--offsets",
+        metavar="FILE",
+        help="write the encoder zero offsets (the [[joints]] tables of a servo configuration) "
+        "to FILE",
+    )
+    calibrate.add_argument(
+        "--servo-config",
+        metavar="FILE",
+        help="the servo configuration (TOML, as for spm servo --config) the readings were "
+        "taken with: converts tick columns when the readings file gives no settings, and "
+        "with --out writes a copy with the identified zero offsets as FILE_servos.toml "
+        "(instead of FILE_offsets.toml)",
+    )
+    calibrate.add_argument(
+        "--servo-out",
+        metavar="FILE",
+        help="write the updated servo configuration to FILE (needs --servo-config)",
     )
     calibrate.add_argument(
         "--force",
@@ -1478,10 +1333,31 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = commands.add_parser(
         "demo",
-        help="the kinematic study of the prototype",
-        description="The kinematic study of the prototype at theta = [60, 90, 120] deg.",
+        help="the published study of the prototype, reproduced, with an HTML report",
+        description="The published study of the prototype, reproduced and extended: forward "
+        "kinematics at theta = [60, 90, 120] deg analytically, by Newton projection and by "
+        "MuJoCo; the motion from home at 25 samples; the colliding input [60, 90, 220] deg; "
+        "the safe workspace; the actuator torques. Writes DIR/index.html (plots and "
+        "meshcat scenes, works offline) and DIR/demo.json. Progress goes to stderr. "
+        "Without mujoco, matplotlib or meshcat the parts that need them are skipped "
+        '(pip install "spm-pin[demo]" brings them). Exit status 1 when the three ways '
+        "of solving the loops disagree beyond their tolerances.",
     )
-    demo.add_argument("--out", metavar="DIR", help="also write DIR/demo.json")
+    demo.add_argument(
+        "--out", metavar="DIR", default="spm-demo", help="report folder (default: ./spm-demo)"
+    )
+    demo.add_argument(
+        "--quick",
+        action="store_true",
+        help="a coarser, faster run (10 deg workspace grid, 100 torque samples per second)",
+    )
+    demo.add_argument(
+        "--workspace-step",
+        type=_number,
+        metavar="DEG",
+        help="grid step of the workspace map [deg] (default 2; 10 with --quick)",
+    )
+    demo.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _add_json_option(demo)
     demo.set_defaults(run=_run_demo)
 
@@ -1518,6 +1394,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_json_option(show)
     _add_design_option(show)
     show.set_defaults(run=_run_show)
+
+    from .demo import DEMO_SAMPLES  # here: spm_pin.demo imports this module
 
     animate = commands.add_parser(
         "animate",

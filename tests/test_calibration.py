@@ -7,6 +7,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -19,6 +21,19 @@ from scipy.stats import chi2
 import spm_pin as spm
 from spm_pin import calibration as cal
 from spm_pin.cli import EXIT_NOT_IDENTIFIED, main
+from spm_pin.hardware import (
+    PULSES_PER_TURN,
+    HardwareConfig,
+    JointConfig,
+    JointMap,
+    SafetyLimits,
+    ServoSettings,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 #: Tolerances, by what they compare.
 TOL = {
@@ -189,16 +204,192 @@ def test_encoder_conventions_and_offsets_in_ticks(tmp_path: Path) -> None:
         joints.radians_per_tick
     )
     assert np.all(np.abs(np.array(result.joints.zero_offset_ticks) - true_zero) < 4 * std_ticks)
-    toml = result.offsets_toml()
-    import tomllib
+    np.testing.assert_allclose(result.zero_offsets, result.joints.zero_offset_ticks, atol=1e-12)
+    # The offsets file holds [[joints]] tables in the servo configuration's keys.
+    data = tomllib.loads(result.offsets_toml())
+    assert set(data) == {"joints"}
+    tables = data["joints"]
+    assert [t["joint"] for t in tables] == ["u_1", "u_2", "u_3"]
+    for i, table in enumerate(tables):
+        assert set(table) == {"joint", "direction", "gear_ratio", "zero_offset"}
+        assert table["direction"] == joints.direction[i]
+        assert table["gear_ratio"] == joints.gear_ratio[i]
+        assert table["zero_offset"] == round(result.joints.zero_offset_ticks[i])
+    # Pasted into a servo configuration (with servo ids) they load as its joints.
+    pasted = HardwareConfig.from_dict(
+        {
+            "joints": [{**t, "servo_id": i + 1} for i, t in enumerate(tables)],
+            "servo": {"profile_velocity_deg_s": 200.0, "profile_acceleration_deg_s2": 2000.0},
+        }
+    )
+    assert [j.zero_offset for j in pasted.joints] == [t["zero_offset"] for t in tables]
+    assert [j.direction for j in pasted.joints] == list(joints.direction)
+    encoder = result.as_dict()["encoder"]["joints"]
+    assert [encoder[f"u_{i}"]["zero_offset"] for i in (1, 2, 3)] == [
+        t["zero_offset"] for t in tables
+    ]
+    assert "zero_offset" in result.report()
 
-    data = tomllib.loads(toml)
-    assert data["ticks_per_turn"] == 4096
-    for i in range(3):
-        joint = data["joints"][f"u_{i + 1}"]
-        assert joint["direction"] == joints.direction[i]
-        assert joint["zero_offset_ticks"] == round(result.joints.zero_offset_ticks[i])
-        assert math.isclose(joint["offset_deg"], result.offsets_deg[i], abs_tol=1e-6)
+
+# ------------------------------------------------------------ servo configuration
+#: The servo configuration of a robot as it really is (ids, directions, a 2:1 gear,
+#: zero offsets), and the one the readings were taken with: its zero offsets are off.
+TRUE_ZERO = (1000, 3000, -200)
+OLD_ZERO = (1000 - 45, 3000 + 27, -200 - 30)  # about 2 deg off
+
+
+def servo_config(zero: tuple[int, int, int]) -> HardwareConfig:
+    return HardwareConfig(
+        port="/dev/ttyUSB1",
+        baudrate=2_000_000,
+        rate_hz=150.0,
+        joints=(
+            JointConfig("u_1", 11, direction=-1, gear_ratio=2.0, zero_offset=zero[0]),
+            JointConfig("u_2", 12, direction=1, gear_ratio=1.0, zero_offset=zero[1]),
+            JointConfig("u_3", 13, direction=-1, gear_ratio=1.0, zero_offset=zero[2]),
+        ),
+        servo=ServoSettings(profile_velocity=math.radians(200), profile_acceleration=40.0),
+        safety=SafetyLimits(max_speed=math.radians(80), theta_min=(-2.0, -2.0, -2.0)),
+    )
+
+
+def readings_with_old_config(
+    tmp_path: Path, count: int = 80, seed: int = 5
+) -> tuple[Path, HardwareConfig]:
+    """Readings of the robot taken with the old configuration, in pulses, in a file
+    without settings (the configuration's apply)."""
+    old = servo_config(OLD_ZERO)
+    joints = cal.JointConvention.from_servo_config(old)
+    # The model's zero sits at TRUE_ZERO pulses: reading - offset = model input.
+    offsets = (np.array(TRUE_ZERO) - np.array(OLD_ZERO)) * joints.radians_per_tick
+    drawn = cal.synthetic_readings(count, seed=seed, joints=joints).truth
+    truth = dataclasses.replace(drawn, offsets=offsets)
+    syn = cal.synthetic_readings(count, seed=seed, joints=joints, truth=truth)
+    text = syn.readings.to_csv()
+    path = tmp_path / "robot.csv"
+    path.write_text("".join(line for line in text.splitlines(True) if " = " not in line))
+    return path, old
+
+
+def test_hardware_and_calibration_share_the_joint_convention() -> None:
+    """theta = direction (pulses - zero_offset) 2 pi / 4096 / gear_ratio in both."""
+    assert cal.TICKS_PER_TURN == PULSES_PER_TURN
+    config = servo_config(OLD_ZERO)
+    joints = cal.JointConvention.from_servo_config(config)
+    assert joints == cal.JointConvention(
+        direction=(-1, 1, -1), zero_offset_ticks=OLD_ZERO, gear_ratio=(2.0, 1.0, 1.0)
+    )
+    pulses = np.array([[1234, -5678, 40000], [0, 2048, -2048], list(OLD_ZERO)])
+    hardware = JointMap(config.joints)
+    for row in pulses:
+        np.testing.assert_allclose(joints.ticks_to_angle(row), hardware.to_theta(row), atol=1e-12)
+        goals = hardware.to_pulses(joints.ticks_to_angle(row))
+        assert [goals[i] for i in config.ids] == row.tolist()
+    with pytest.raises(spm.InputError, match="HardwareConfig"):
+        cal.JointConvention.from_servo_config(joints)  # type: ignore[arg-type]
+
+
+def test_servo_config_round_trip(tmp_path: Path) -> None:
+    """Readings taken with perturbed zero offsets -> calibrate -> the updated
+    configuration holds the true zero offsets, within the intervals."""
+    path, old = readings_with_old_config(tmp_path)
+    joints = cal.JointConvention.from_servo_config(old)
+    readings = cal.load_readings(path, joints=joints)
+    assert readings.joints == joints  # the file gives no settings: the configuration's
+    result = cal.calibrate(readings, confidence=1 - MISS)
+    assert result.ok
+    new = result.servo_config(old)
+    # Within the interval of each offset, widened by the rounding to whole pulses.
+    for i, joint in enumerate(new.joints):
+        estimate = result.estimate(f"offset_{i + 1}")
+        ends = OLD_ZERO[i] + np.array([estimate.low, estimate.high]) / joints.radians_per_tick[i]
+        assert ends.min() - 0.5 <= TRUE_ZERO[i] <= ends.max() + 0.5, (joint, ends)
+        assert not ends.min() <= OLD_ZERO[i] <= ends.max()  # the old zero is rejected
+        assert ends.min() - 0.5 <= joint.zero_offset <= ends.max() + 0.5
+        assert joint.zero_offset == round(float(result.zero_offsets[i]))
+    # Everything but the zero offsets is kept.
+    kept = old.to_dict()
+    changed = new.to_dict()
+    for table in (*kept["joints"], *changed["joints"]):
+        table.pop("zero_offset")
+    assert changed == kept
+    # The file loads back, and its joints turn the readings' pulses into the
+    # calibrated input angles (to half a pulse, the rounding of the zero offsets).
+    saved = new.save(tmp_path / "new.toml")
+    loaded = HardwareConfig.load(saved)
+    assert loaded.joints == new.joints and loaded.to_dict() == new.to_dict()
+    from_file = result.servo_config(old.save(tmp_path / "old.toml"))
+    assert from_file.to_dict() == new.to_dict()
+    pulses = np.rint(joints.angle_to_ticks(readings.theta)).astype(int)
+    before, after = JointMap(old.joints), JointMap(loaded.joints)
+    half_pulse = 0.5 * 2 * math.pi / PULSES_PER_TURN / np.array([2.0, 1.0, 1.0])
+    for k in range(len(readings)):
+        np.testing.assert_allclose(before.to_theta(pulses[k]), readings.theta[k], atol=1e-12)
+        calibrated = readings.theta[k] - result.parameters.offsets
+        assert np.all(np.abs(after.to_theta(pulses[k]) - calibrated) <= half_pulse + 1e-12)
+
+
+def test_servo_config_needs_the_readings_joints(tmp_path: Path) -> None:
+    path, old = readings_with_old_config(tmp_path, count=30)
+    plain = cal.calibrate(cal.load_readings(path))  # default convention: direction +1
+    with pytest.raises(spm.InputError, match="joint u_1: the readings were converted with"):
+        plain.servo_config(old)
+    with pytest.raises(spm.InputError, match="HardwareConfig"):
+        plain.servo_config({"port": "/dev/ttyUSB0"})  # type: ignore[arg-type]
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[[joints]]\njoint = 'u_1'\n")
+    with pytest.raises(spm.FileFormatError, match="needs 'joint' and 'servo_id'"):
+        plain.servo_config(bad)
+
+
+def test_readings_settings_use_the_servo_configuration_keys() -> None:
+    joints = cal.JointConvention(direction=(1, -1, 1), zero_offset_ticks=(10, 20.5, -30))
+    syn = cal.synthetic_readings(5, seed=2, joints=joints)
+    text = syn.readings.to_csv()
+    assert "# zero_offset = 10, 20.5, -30\n" in text
+    assert "zero_offset_ticks" not in text
+    assert cal.parse_readings(text).joints == joints
+    # The older name is still read; both names are one setting.
+    legacy = text.replace("# zero_offset =", "# zero_offset_ticks =")
+    assert cal.parse_readings(legacy).joints == joints
+    twice = text.replace("# gear_ratio", "# zero_offset_ticks = 0\n# gear_ratio")
+    with pytest.raises(spm.FileFormatError, match="'zero_offset' given twice"):
+        cal.parse_readings(twice)
+    bad = text.replace("# zero_offset = 10, 20.5, -30", "# zero_offset = 1, nan, 3")
+    with pytest.raises(spm.FileFormatError, match="setting zero_offset must be 3 finite"):
+        cal.parse_readings(bad)
+    # Settings the file does not give come from ``joints``; those it gives win.
+    default = cal.JointConvention(direction=(-1, -1, -1), zero_offset_ticks=(1, 2, 3))
+    partial = "".join(line for line in text.splitlines(True) if "# direction" not in line)
+    merged = cal.parse_readings(partial, joints=default).joints
+    assert merged == dataclasses.replace(joints, direction=(-1, -1, -1))
+    # A default zero offset is a shaft angle: in the file's counts if they differ.
+    rows = [line for line in text.splitlines(True) if not line.startswith("#")]
+    finer = "".join(["# ticks_per_turn = 8192\n", *rows])
+    assert cal.parse_readings(finer, joints=default).joints == dataclasses.replace(
+        default, ticks_per_turn=8192, zero_offset_ticks=(2, 4, 6)
+    )
+    with pytest.raises(spm.InputError, match="joints must be a JointConvention"):
+        cal.parse_readings(text, joints=servo_config(OLD_ZERO))  # type: ignore[arg-type]
+
+
+def test_calibration_and_servo_config_without_the_sdk(tmp_path: Path) -> None:
+    """The hardware extra (dynamixel-sdk) is not needed to calibrate or to update a
+    servo configuration."""
+    path, old = readings_with_old_config(tmp_path, count=30)
+    old.save(tmp_path / "servos.toml")
+    code = f"""
+import sys
+sys.modules["dynamixel_sdk"] = None  # import dynamixel_sdk now raises ImportError
+from spm_pin import calibration as cal
+from spm_pin.cli import main
+assert main(["calibrate", {str(path)!r}, "--servo-config", {str(tmp_path / "servos.toml")!r},
+             "--servo-out", {str(tmp_path / "new.toml")!r}, "--no-plot"]) == 0
+assert "dynamixel_sdk" not in sys.modules or sys.modules["dynamixel_sdk"] is None
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert HardwareConfig.load(tmp_path / "new.toml").ids == (11, 12, 13)
 
 
 # ------------------------------------------------------------------------ CSV format
@@ -478,13 +669,93 @@ def test_cli_synth_calibrate_and_use_the_design(
     lo, hi = by_name["alpha1"]["ci_deg"]
     assert lo - 1.0 < synth["truth"]["alpha1_deg"] < hi + 1.0
     assert (tmp_path / "cal_report.txt").read_text().startswith("spm-pin calibration")
-    assert "[joints.u_1]" in (tmp_path / "cal_offsets.toml").read_text()
+    offsets = tomllib.loads((tmp_path / "cal_offsets.toml").read_text())
+    assert [t["joint"] for t in offsets["joints"]] == ["u_1", "u_2", "u_3"]
+    assert not (tmp_path / "cal_servos.toml").exists()
     assert main(["fk", "60", "90", "120", "--design", str(out), "--json"]) == 0
     fk = json.loads(capsys.readouterr().out)
     assert fk["design"] == "prototype_calibrated"
     np.testing.assert_allclose(
         fk["R"], spm.forward_kinematics(np.radians([60, 90, 120]), design).R, atol=1e-12
     )
+
+
+def test_cli_servo_config(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """spm calibrate --servo-config: the readings' ticks in the configuration's
+    convention, and beside the design a copy of it with the identified zero offsets."""
+    readings, old = readings_with_old_config(tmp_path)
+    config = old.save(tmp_path / "servos.toml")
+    out = tmp_path / "cal.toml"
+    args = ["calibrate", str(readings), "--out", str(out), "--servo-config", str(config)]
+    assert main([*args, "--no-plot", "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["files"] == {
+        "design": str(out),
+        "report": str(tmp_path / "cal_report.txt"),
+        "servos": str(tmp_path / "cal_servos.toml"),
+    }
+    assert not (tmp_path / "cal_offsets.toml").exists()
+    written = HardwareConfig.load(tmp_path / "cal_servos.toml")
+    joints = cal.JointConvention.from_servo_config(old)
+    expected = cal.calibrate(cal.load_readings(readings, joints=joints)).servo_config(old)
+    assert written.joints == expected.joints
+    assert written.to_dict() == expected.to_dict()
+    assert record["servo_config"] == {
+        "from": str(config),
+        "zero_offset_before": list(OLD_ZERO),
+        "zero_offset": [j.zero_offset for j in written.joints],
+    }
+    # --servo-out names the file; without --out nothing else is written.
+    elsewhere = tmp_path / "new" / "servos.toml"
+    elsewhere.parent.mkdir()
+    args = ["calibrate", str(readings), "--servo-config", str(config)]
+    assert main([*args, "--servo-out", str(elsewhere)]) == 0
+    text = capsys.readouterr().out
+    assert f"servo configuration {config}: zero_offset {list(OLD_ZERO)} -> " in text
+    assert f"wrote servos: {elsewhere}" in text
+    assert HardwareConfig.load(elsewhere).joints == written.joints
+    assert sorted(p.name for p in elsewhere.parent.iterdir()) == ["servos.toml"]
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("port = 3\n", "port must be a string, got 3"),
+        ("[[joints]]\njoint = 'u_1'\nservo_id = 1\nzero_offset = 1.5\n", "zero_offset must be"),
+        ("[servo]\nprofile_velocity = 1\n", "[servo] has unknown key(s)"),
+        ("joints = [", "not valid TOML"),
+    ],
+)
+def test_cli_malformed_servo_config(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, message: str
+) -> None:
+    readings, _ = readings_with_old_config(tmp_path, count=30)
+    config = tmp_path / "servos.toml"
+    config.write_text(content)
+    out = tmp_path / "cal.toml"
+    assert main(["calibrate", str(readings), "--out", str(out), "--servo-config", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith(f"spm: error: {config}: ")
+    assert message in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["robot.csv", "servos.toml"]
+
+
+def test_cli_servo_config_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    readings, old = readings_with_old_config(tmp_path, count=30)
+    config = old.save(tmp_path / "servos.toml")
+    # Settings in the readings that contradict the configuration: exit 2, nothing written.
+    header = tmp_path / "header.csv"
+    header.write_text("# direction = 1, 1, 1\n" + readings.read_text())
+    out = tmp_path / "cal.toml"
+    assert main(["calibrate", str(header), "--out", str(out), "--servo-config", str(config)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("spm: error: joint u_1: the readings were converted with direction +1")
+    assert not out.exists() and not (tmp_path / "cal_servos.toml").exists()
+    assert main(["calibrate", str(readings), "--servo-config", str(tmp_path / "none.toml")]) == 2
+    assert "cannot read servo configuration" in capsys.readouterr().err
+    assert main(["calibrate", str(readings), "--servo-out", str(tmp_path / "x.toml")]) == 2
+    assert "--servo-out needs --servo-config" in capsys.readouterr().err
 
 
 def test_cli_malformed_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

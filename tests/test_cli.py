@@ -19,7 +19,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import spm_pin as spm
-from spm_pin.cli import DEMO_SECTIONS, FK_SOLVERS, DemoContext, FKSolution, main
+from spm_pin.cli import FK_SOLVERS, FKSolution, main
+from spm_pin.demo import DEMO_SECTIONS, MUJOCO_TOLERANCE
 from spm_pin.rotations import (
     matrix_from_quaternion,
     matrix_from_rpy,
@@ -33,7 +34,7 @@ TOL = {
     "round_trip_deg": 1e-9,  # fk then ik gives back the input [deg]
     "text": 1e-6,  # a value printed as text (6 decimals)
     "residual": 1e-12,  # closure residual of a solution
-    "track": 1e-9,  # the tracked motion against the home mode solved on its own
+    "mujoco": MUJOCO_TOLERANCE["gravity"],  # spm demo: MuJoCo's axes against the analytic
 }
 
 THETA_DEG = [60.0, 90.0, 120.0]  # the published study's demonstration input
@@ -260,44 +261,43 @@ def test_design_round_trip(capsys: pytest.CaptureFixture[str], tmp_path: Path) -
 
 
 # ----------------------------------------------------------------------------- demo
-def test_demo_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+def test_demo_text(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """``spm demo --quick``: the study in text, progress on stderr, the report written.
+    (tests/test_demo.py checks the default run's numbers and files in depth.)"""
     directory = tmp_path / "new" / "dir"
-    status, out, err = run(capsys, "demo", "--out", str(directory))
+    status, out, err = run(capsys, "demo", "--quick", "--out", str(directory))
     assert status == 0, err
-    assert err == ""
-    assert "wrote" in out
-    data = json.loads((directory / "demo.json").read_text())
-    assert list(data) == ["theta_deg", *(s(DemoContext()).key for s in DEMO_SECTIONS)]
-    assert data["theta_deg"] == THETA_DEG
-    modes = data["assembly_modes"]
-    assert modes["count"] == 8
-    assert [m["home"] for m in modes["modes"]].count(True) == 1
+    for section in (
+        "Forward kinematics at theta = [60, 90, 120] deg, three ways",
+        "Every real assembly mode",
+        "The motion from home to that input, 25 samples",
+        "The colliding input [60, 90, 220] deg",
+        "The safe workspace (10-degree grid",
+        "Actuator torques along the motion",
+    ):
+        assert f"== {section}" in out
+    assert re.search(r"^all_home\s+true$", out, re.MULTILINE)
+    assert re.search(r"^pairs\s+proximal_2-proximal_3", out, re.MULTILINE)
+    assert f"report: {directory / 'index.html'}" in out
+    assert "Skipped" not in out
+    # one progress line per section on stderr, none on stdout
+    assert err.count("spm demo [") == len(DEMO_SECTIONS)
+    assert "spm demo [" not in out
+    # the platform axes printed side by side are the library's
     fk = spm.forward_kinematics(np.radians(THETA_DEG))
-    np.testing.assert_allclose(data["home_mode"]["R"], fk.R, atol=TOL["json"])
-    np.testing.assert_allclose(data["home_mode"]["v"], fk.v, atol=TOL["json"])
-    assert data["inverse"]["round_trip_error_deg"] < TOL["round_trip_deg"]
-    motion = data["motion"]
-    assert motion["samples"] == len(motion["path"]) == 25
-    assert motion["all_home"] is True
-    assert all(sample["home"] and sample["label"] == "+++/-" for sample in motion["path"])
-    np.testing.assert_allclose(motion["path"][-1]["theta_deg"], THETA_DEG, atol=TOL["json"])
-    np.testing.assert_allclose(motion["path"][-1]["v"], fk.v, atol=TOL["track"])
-    np.testing.assert_allclose(
-        motion["path"][0]["v"], spm.SPMDesign.prototype().v0, atol=TOL["json"]
-    )
+    for i in range(3):
+        row = re.search(rf"^v_{i + 1}\s+(.*)$", out, re.MULTILINE)
+        assert row is not None
+        numbers = np.array(row.group(1).split(), dtype=float).reshape(-1, 3)
+        assert numbers.shape == (3, 3)  # analytic, projection, MuJoCo
+        np.testing.assert_allclose(numbers, np.broadcast_to(fk.v[i], (3, 3)), atol=TOL["mujoco"])
+        np.testing.assert_allclose(numbers[:2], np.broadcast_to(fk.v[i], (2, 3)), atol=TOL["text"])
+    data = json.loads((directory / "demo.json").read_text())
+    assert data["theta_deg"] == THETA_DEG
     assert data["colliding_input"]["theta_deg"] == COLLIDING_DEG
     assert data["colliding_input"]["home_mode_exists"] is False
-    # --json prints the same record.
-    assert run_json(capsys, "demo") == data
-
-
-def test_demo_text(capsys: pytest.CaptureFixture[str]) -> None:
-    status, out, err = run(capsys, "demo")
-    assert status == 0
-    assert err == ""
-    for title in ("Every real assembly mode", "home assembly mode", "Tracked motion"):
-        assert title in out
-    assert "all_home           true" in out
+    assert data["workspace"]["step_deg"] == 10.0
+    assert (directory / "index.html").is_file()
 
 
 # --------------------------------------------------------------------------- errors
@@ -342,6 +342,9 @@ BAD_ARGUMENTS = [
     ["design", "--preset", "prototype", "--design", "x.toml"],
     ["design", "--out", "{tmp}/no/such/dir/f.toml"],
     ["demo", "--out", "{malformed}"],
+    ["demo", "--workspace-step", "0"],
+    ["demo", "--workspace-step", "nan"],
+    ["demo", "--bogus"],
 ]
 
 

@@ -1,0 +1,500 @@
+"""``spm demo``: the report's files, its numbers against independent computations, and
+the run without the optional dependencies.
+
+One real default run (``spm demo --out DIR --json``, as a user runs it) is shared by
+most tests; the run without MuJoCo, matplotlib and meshcat uses the quick settings.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import html.parser
+import io
+import json
+import os
+import re
+import struct
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import spm_pin as spm
+from spm_pin.cli import main
+from spm_pin.collision import check_input
+from spm_pin.demo import (
+    DEMO_SECTIONS,
+    INSTALL_DEMO,
+    MUJOCO_SETTLE_STEPS,
+    MUJOCO_TOLERANCE,
+    PROJECTION_TOLERANCE,
+    STUDY_AGREEMENT,
+    DemoContext,
+    mujoco_platform_axes,
+)
+from spm_pin.errors import InputError
+from spm_pin.workspace import WorkspaceMap, gaps_from_theta
+
+#: Tolerances, by what they compare.
+TOL = {
+    "json": 1e-12,  # a value in the record against the library's own value
+    "projection": PROJECTION_TOLERANCE,  # Newton projection against the analytic axes
+    "mujoco": MUJOCO_TOLERANCE["gravity"],  # MuJoCo upright against the analytic axes
+    "mujoco_no_gravity": MUJOCO_TOLERANCE["no_gravity"],  # MuJoCo without load
+    "torque": 1e-9,  # the record's torques against inverse dynamics recomputed [N m]
+    "rotation": 1e-9,  # R R^T = I for MuJoCo's body orientations
+}
+#: The study's figures.
+THETA_DEG = [60.0, 90.0, 120.0]
+COLLIDING_DEG = [60.0, 90.0, 220.0]
+SAMPLES = 25
+#: The demo's time budget [s] (a default run takes about 15 s).
+MAX_RUNTIME_S = 120.0
+
+SECTION_KEYS = [
+    "design",
+    "forward_kinematics",
+    "assembly_modes",
+    "velocity",
+    "inverse",
+    "motion",
+    "colliding_input",
+    "workspace",
+    "torques",
+]
+RECORD_KEYS = [
+    "spm_pin_version",
+    "theta_deg",
+    "colliding_theta_deg",
+    *SECTION_KEYS,
+    "skipped",
+    "failed_checks",
+    "timing_s",
+    "runtime_s",
+    "report",
+]
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+URL = re.compile(r"https?://[^\s\"'<>)]*")
+#: URLs allowed in a scene: XML namespace names in the inlined viewer, never fetched.
+NAMESPACES = {"http://www.w3.org/1999/xhtml"}
+
+
+# ------------------------------------------------------------------------ runs
+@pytest.fixture(scope="module")
+def default_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """``spm demo --out DIR --json``, the default settings, run once (in this process)."""
+    out = tmp_path_factory.mktemp("demo") / "report"
+    stdout, stderr = io.StringIO(), io.StringIO()
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        status = main(["demo", "--out", str(out), "--json"])
+    seconds = time.perf_counter() - start
+    assert status == 0, stderr.getvalue()
+
+    def no_constants(name: str) -> None:
+        raise AssertionError(f"JSON output contains {name}")
+
+    record = json.loads(stdout.getvalue(), parse_constant=no_constants)
+    return {"out": out, "record": record, "stderr": stderr.getvalue(), "seconds": seconds}
+
+
+@pytest.fixture(scope="module")
+def record(default_run: dict[str, Any]) -> dict[str, Any]:
+    result: dict[str, Any] = default_run["record"]
+    return result
+
+
+@pytest.fixture(scope="module")
+def out(default_run: dict[str, Any]) -> Path:
+    path: Path = default_run["out"]
+    return path
+
+
+@pytest.fixture(scope="module")
+def robot() -> spm.SPMRobot:
+    return spm.build_robot()
+
+
+# ------------------------------------------------------------------ the record
+def test_default_run_is_fast_and_complete(default_run: dict[str, Any]) -> None:
+    record = default_run["record"]
+    assert default_run["seconds"] < MAX_RUNTIME_S
+    assert 0.0 < record["runtime_s"] < MAX_RUNTIME_S
+    assert list(record) == RECORD_KEYS
+    assert list(record["timing_s"]) == SECTION_KEYS
+    assert record["skipped"] == []  # the test extra brings every optional dependency
+    assert record["failed_checks"] == []
+    assert record["theta_deg"] == THETA_DEG
+    assert record["colliding_theta_deg"] == COLLIDING_DEG
+    assert record["design"]["name"] == "prototype"
+    # progress went to stderr, one line per section, and stdout is the JSON alone
+    progress = default_run["stderr"].splitlines()
+    assert len([line for line in progress if line.startswith("spm demo [")]) == len(DEMO_SECTIONS)
+
+
+def test_demo_json_file_is_the_record(out: Path, record: dict[str, Any]) -> None:
+    assert json.loads((out / "demo.json").read_text()) == record
+    assert record["report"]["index_html"] == str(out / "index.html")
+
+
+def test_forward_kinematics_three_ways(record: dict[str, Any], robot: spm.SPMRobot) -> None:
+    fk_data = record["forward_kinematics"]
+    theta = np.radians(THETA_DEG)
+    fk = spm.forward_kinematics(theta)
+    methods = fk_data["methods"]
+    assert set(methods) == {"analytic", "projection", "mujoco", "mujoco_no_gravity"}
+    np.testing.assert_allclose(methods["analytic"]["v"], fk.v, atol=TOL["json"])
+    np.testing.assert_allclose(fk_data["R"], fk.R, atol=TOL["json"])
+    assert fk_data["mode"] == "+++/-"
+    # Newton projection, recomputed here from home with the public API
+    projection = spm.ClosedLoop.from_robot(robot).project(theta)
+    R = np.array(robot.placement(projection.q, "platform").rotation)
+    v_projection = np.einsum("jk,ik->ij", R, robot.design.v0)
+    np.testing.assert_allclose(methods["projection"]["v"], v_projection, atol=TOL["json"])
+    np.testing.assert_allclose(methods["projection"]["v"], fk.v, atol=TOL["projection"])
+    assert methods["projection"]["residual"] <= 1e-12
+    # MuJoCo: within its stated tolerance; its soft welds yield under gravity only
+    np.testing.assert_allclose(methods["mujoco"]["v"], fk.v, atol=TOL["mujoco"])
+    np.testing.assert_allclose(
+        methods["mujoco_no_gravity"]["v"], fk.v, atol=TOL["mujoco_no_gravity"]
+    )
+    upright = methods["mujoco"]["deviation_from_analytic"]
+    unloaded = methods["mujoco_no_gravity"]["deviation_from_analytic"]
+    assert unloaded < 1e-3 * upright < STUDY_AGREEMENT
+    assert (
+        methods["mujoco"]["weld_opening_rad"]
+        > 1e3 * methods["mujoco_no_gravity"]["weld_opening_rad"]
+    )
+    for key in ("projection", "mujoco", "mujoco_no_gravity"):
+        deviation = np.abs(np.array(methods[key]["v"]) - fk.v).max()
+        assert methods[key]["deviation_from_analytic"] == pytest.approx(deviation, abs=1e-15)
+    assert fk_data["within_tolerance"] == {
+        "projection": True,
+        "mujoco": True,
+        "mujoco_no_gravity": True,
+    }
+    assert fk_data["study_agreement"] == STUDY_AGREEMENT
+
+
+def test_motion_25_samples(record: dict[str, Any], robot: spm.SPMRobot) -> None:
+    motion = record["motion"]
+    assert motion["samples"] == len(motion["path"]) == SAMPLES
+    assert motion["all_home"] is True and motion["lost"] is False
+    path = np.linspace(0.0, 1.0, SAMPLES)[:, None] * np.radians(THETA_DEG)
+    theta_deg = np.array([sample["theta_deg"] for sample in motion["path"]])
+    np.testing.assert_allclose(theta_deg, np.degrees(path), atol=TOL["json"])
+    fk = spm.forward_kinematics(path)  # each sample solved on its own
+    v = np.array([sample["v"] for sample in motion["path"]])
+    v_projection = np.array([sample["v_projection"] for sample in motion["path"]])
+    v_mujoco = np.array([sample["v_mujoco"] for sample in motion["path"]])
+    np.testing.assert_allclose(v, fk.v, atol=1e-9)
+    np.testing.assert_allclose(v_projection, fk.v, atol=TOL["projection"])
+    np.testing.assert_allclose(v_mujoco, fk.v, atol=TOL["mujoco"])
+    np.testing.assert_allclose(v[0], robot.design.v0, atol=TOL["json"])
+    # the motion's last sample is the demonstration input of the first section
+    np.testing.assert_allclose(
+        v_mujoco[-1], record["forward_kinematics"]["methods"]["mujoco"]["v"], atol=TOL["json"]
+    )
+    assert motion["max_deviation_projection"] <= TOL["projection"]
+    assert motion["within_tolerance"] == {"projection": True, "mujoco": True}
+    assert motion["plot"] == "motion_axes.png"
+    assert motion["scene"] == "scenes/motion.html"
+
+
+def test_colliding_input(record: dict[str, Any], robot: spm.SPMRobot) -> None:
+    data = record["colliding_input"]
+    theta = np.radians(COLLIDING_DEG)
+    assert data["theta_deg"] == COLLIDING_DEG
+    assert data["home_mode_exists"] is False
+    report = check_input(theta, robot)
+    assert data["mode"] == report.mode == "++-/-"
+    assert "++-/-" in data["checked"]
+    q = robot.configuration(theta, mode=data["mode"])
+    pairs = [list(pair) for pair in robot.collisions(q)]
+    assert data["pairs"] == pairs and pairs
+    assert ["proximal_2", "proximal_3"] in pairs
+    links = sorted({name for pair in pairs for name in pair})
+    assert data["links"] == links
+    assert data["drawn_black"] == links
+    assert data["collision"] is True
+    assert data["min_distance_m"] < 0.0
+    np.testing.assert_allclose(data["gaps_deg"], gaps_from_theta(theta), atol=TOL["json"])
+
+
+def test_safe_workspace(record: dict[str, Any], out: Path, robot: spm.SPMRobot) -> None:
+    data = record["workspace"]
+    assert data["step_deg"] == 2.0
+    assert 0.0 < data["safe_fraction"] < data["reachable_fraction"] < 1.0
+    saved = WorkspaceMap.load(out / "workspace")
+    assert len(saved) == data["points"]
+    assert saved.summary()["safe_fraction"] == data["safe_fraction"]
+    # the demonstration input, checked directly, and on the map
+    theta = np.radians(THETA_DEG)
+    jac = spm.jacobian(theta)
+    assert robot.collisions(theta) == []
+    assert data["demo_input"]["safe"] is (float(jac.dexterity) >= 0.2)
+    assert data["demo_input"]["safe"] is True
+    d12, d23, _ = gaps_from_theta(theta)
+    nearest = np.argmin(np.hypot(saved["d12_deg"] - d12, saved["d23_deg"] - d23))
+    assert bool(saved["safe"][nearest])
+    assert data["motion_safe_samples"] == SAMPLES
+
+
+def test_torques_against_inverse_dynamics(record: dict[str, Any]) -> None:
+    data = record["torques"]
+    motion = spm.Trajectory.minimum_jerk(np.zeros(3), np.radians(THETA_DEG), 1.0, 500.0)
+    result = spm.inverse_dynamics(None, motion)
+    check = spm.check_servo(result.torque, result.theta_dot, time=motion.time)
+    assert data["trajectory"]["samples"] == motion.time.shape[0]
+    np.testing.assert_allclose(data["peak_torque_nm"], check.peak_torque, atol=TOL["torque"])
+    np.testing.assert_allclose(data["rms_torque_nm"], check.rms_torque, atol=TOL["torque"])
+    assert data["within_limits"] is check.within_limits is True
+    assert data["verdict"] == check.message
+    assert data["verdict"].startswith("OK")
+    assert data["plot"] == "torques.png"
+
+
+# ------------------------------------------------------------------------ files
+#: HTML elements without an end tag.
+VOID_ELEMENTS = frozenset({"meta", "img", "br", "hr", "link", "input", "source"})
+
+
+class _Checker(html.parser.HTMLParser):
+    """Checks that every element is closed in order and collects references."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.stack: list[str] = []
+        self.errors: list[str] = []
+        self.images: list[str] = []
+        self.frames: list[str] = []
+        self.links: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        values = dict(attrs)
+        if tag == "img":
+            self.images.append(str(values["src"]))
+        elif tag == "iframe":
+            self.frames.append(str(values["src"]))
+        elif tag == "a":
+            self.links.append(str(values["href"]))
+        if tag not in VOID_ELEMENTS:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag: str) -> None:
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes {self.stack[-1:] or 'nothing'}")
+        else:
+            self.stack.pop()
+
+
+def _parse(path: Path) -> _Checker:
+    checker = _Checker()
+    checker.feed(path.read_text(encoding="utf-8"))
+    checker.close()
+    assert checker.errors == [] and checker.stack == [], (checker.errors, checker.stack)
+    return checker
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE, f"{path} is not a PNG"
+    assert data[12:16] == b"IHDR"
+    width, height = struct.unpack(">II", data[16:24])
+    return width, height
+
+
+def test_report_files(out: Path, record: dict[str, Any]) -> None:
+    index = _parse(out / "index.html")
+    text = (out / "index.html").read_text(encoding="utf-8")
+    assert URL.findall(text) == []  # nothing to fetch
+    assert index.frames == [
+        "scenes/demo_input.html",
+        "scenes/motion.html",
+        "scenes/colliding_input.html",
+    ]
+    assert set(index.images) >= {
+        "motion_axes.png",
+        "safe_workspace.png",
+        "workspace/gap_map.png",
+        "workspace/orientation.png",
+        "torques.png",
+    }
+    for image in index.images:
+        width, height = _png_size(out / image)
+        assert width > 300 and height > 300
+    for link in index.links:
+        if not link.startswith("#"):
+            assert (out / link).is_file(), link
+    for name in record["report"]["files"]:
+        assert (out / name).is_file(), name
+
+
+def test_scenes_are_self_contained(out: Path) -> None:
+    sizes = set()
+    for frame in ("demo_input", "motion", "colliding_input"):
+        path = out / "scenes" / f"{frame}.html"
+        _parse(path)
+        text = path.read_text(encoding="utf-8")
+        assert set(URL.findall(text)) <= NAMESPACES, path
+        assert re.search(r"""(src|href)\s*=\s*["']?\s*(https?:)?//""", text) is None
+        assert "spm_scene_ready" in text
+        sizes.add(len(text))
+    assert len(sizes) >= 2  # not one scene three times
+
+
+# -------------------------------------------------------------- the browser
+def _on_ci() -> bool:
+    return os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
+
+
+@pytest.mark.browser
+def test_report_offline_in_chromium(out: Path, record: dict[str, Any]) -> None:
+    """index.html in a real browser, every request outside the report refused: the three
+    scenes build, and the colliding scene shows exactly the colliding links in black."""
+    from spm_pin.viz.browser import find_chromium
+
+    if find_chromium() is None:
+        if _on_ci():
+            pytest.fail("no Chromium; under CI the browser tests must run")
+        pytest.skip("no Chromium on the PATH")
+    try:
+        import playwright  # noqa: F401
+    except ImportError:
+        if _on_ci():
+            pytest.fail("no Playwright; under CI the browser tests must run")
+        pytest.skip("Playwright is not installed")
+    from spm_pin.viz.browser import chromium
+
+    folder = out.resolve().as_uri() + "/"
+    refused: list[str] = []
+
+    def route(request_route: Any) -> None:
+        if request_route.request.url.startswith(folder):
+            request_route.continue_()
+        else:
+            refused.append(request_route.request.url)
+            request_route.abort()
+
+    with chromium() as browser:
+        page = browser.new_page(viewport={"width": 1000, "height": 800})
+        errors: list[str] = []
+        page.on("pageerror", lambda error: errors.append(str(error)))
+        page.route("**/*", route)
+        page.goto(folder + "index.html")
+        for frame in page.locator("iframe").all():
+            frame.scroll_into_view_if_needed()
+        frames = {Path(f.url).stem: f for f in page.frames if f != page.main_frame}
+        assert set(frames) == {"demo_input", "motion", "colliding_input"}
+        for frame in frames.values():
+            frame.wait_for_function("() => window.spm_scene_ready === true", timeout=60_000)
+        black = frames["colliding_input"].evaluate(
+            """() => {
+                const links = viewer.scene_tree.children["meshcat"].children["spm"]
+                    .children["links"].children;
+                return Object.keys(links).filter(
+                    (name) => links[name].children["colliding"].object.visible);
+            }"""
+        )
+        page.close()
+    assert sorted(black) == record["colliding_input"]["drawn_black"]
+    assert refused == []
+    assert errors == []
+
+
+# ------------------------------------------------- without optional dependencies
+def test_without_optional_dependencies(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for module in ("mujoco", "matplotlib", "meshcat"):
+        monkeypatch.setitem(sys.modules, module, None)  # import fails as if not installed
+    out = tmp_path / "report"
+    status = main(["demo", "--quick", "--quiet", "--out", str(out)])
+    text, err = capsys.readouterr()
+    assert status == 0
+    assert err == ""  # --quiet
+    data = json.loads((out / "demo.json").read_text())
+    missing = {item["missing"] for item in data["skipped"]}
+    assert missing == {"mujoco", "matplotlib", "meshcat"}
+    assert all(INSTALL_DEMO in item["install"] for item in data["skipped"])
+    assert f"install them with: {INSTALL_DEMO}" in text
+    # everything else ran
+    methods = data["forward_kinematics"]["methods"]
+    assert methods["mujoco"] is None and methods["mujoco_no_gravity"] is None
+    fk = spm.forward_kinematics(np.radians(THETA_DEG))
+    np.testing.assert_allclose(methods["projection"]["v"], fk.v, atol=TOL["projection"])
+    assert data["motion"]["samples"] == SAMPLES and data["motion"]["plot"] is None
+    assert data["colliding_input"]["pairs"] and data["colliding_input"]["scene"] is None
+    assert data["workspace"]["step_deg"] == 10.0 and data["workspace"]["plots"] == []
+    assert data["torques"]["within_limits"] is True and data["torques"]["plot"] is None
+    # the report says what was skipped and references no missing file
+    index = _parse(out / "index.html")
+    assert index.frames == [] and index.images == []
+    assert "Skipped" in (out / "index.html").read_text(encoding="utf-8")
+    assert not list(out.glob("*.png")) and not (out / "scenes").exists()
+
+
+# ----------------------------------------------------------------- MuJoCo helper
+def test_mujoco_platform_axes(robot: spm.SPMRobot) -> None:
+    path = np.linspace(0.0, 1.0, 4)[:, None] * np.radians([20.0, -10.0, 5.0])
+    fk = spm.forward_kinematics(path)
+    free = mujoco_platform_axes(path, robot, gravity=(0.0, 0.0, 0.0))
+    upright = mujoco_platform_axes(path, robot)
+    np.testing.assert_allclose(free.v, fk.v, atol=TOL["mujoco_no_gravity"])
+    np.testing.assert_allclose(upright.v, fk.v, atol=TOL["mujoco"])
+    assert np.abs(upright.v - fk.v).max() > 1e3 * np.abs(free.v - fk.v).max()
+    assert free.steps == upright.steps == 4 * MUJOCO_SETTLE_STEPS
+    np.testing.assert_allclose(
+        free.R @ np.swapaxes(free.R, -1, -2),
+        np.broadcast_to(np.eye(3), (4, 3, 3)),
+        atol=TOL["rotation"],
+    )
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"path": np.zeros((2, 2))},
+        {"path": [[0.0, np.nan, 0.0]]},
+        {"settle_steps": 1},
+        {"timestep": 0.0},
+        {"gravity": (0.0, 9.81)},
+        {"mjcf": "no/such/file.xml"},
+    ],
+    ids=["shape", "nan", "settle_steps", "timestep", "gravity", "mjcf"],
+)
+def test_mujoco_platform_axes_bad_input(robot: spm.SPMRobot, kwargs: dict[str, Any]) -> None:
+    arguments: dict[str, Any] = {"path": np.zeros((1, 3)), **kwargs}
+    with pytest.raises(InputError):
+        mujoco_platform_axes(robot=robot, **arguments)
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [{"samples": 1}, {"workspace_step_deg": 0.0}, {"theta_deg": (0.0, 1.0)}],
+    ids=["samples", "step", "theta"],
+)
+def test_bad_context(changes: dict[str, Any]) -> None:
+    with pytest.raises(InputError):
+        DemoContext(**changes)
+
+
+def test_failed_cross_check_exits_1(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A tolerance no solver can meet: the demo still reports, and exits with status 1."""
+    import spm_pin.demo
+
+    for module in ("mujoco", "matplotlib", "meshcat"):  # keep this run short
+        monkeypatch.setitem(sys.modules, module, None)
+    monkeypatch.setattr(spm_pin.demo, "PROJECTION_TOLERANCE", 0.0)
+    status = main(["demo", "--quick", "--quiet", "--out", str(tmp_path)])
+    text, err = capsys.readouterr()
+    assert status == 1
+    failed = ["forward_kinematics: projection", "motion: projection"]
+    assert json.loads((tmp_path / "demo.json").read_text())["failed_checks"] == failed
+    assert re.search(r"^Newton projection: .*; OUTSIDE the tolerance 0$", text, re.MULTILINE)
+    assert err == f"spm: warning: cross-checks outside their tolerance: {', '.join(failed)}\n"
