@@ -5,8 +5,11 @@ No timing is asserted: only the structure of the output and the accuracy figures
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
+import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -288,3 +291,63 @@ def test_quick_collision_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture
     assert 0.0 < results["map"]["reachable_fraction"] < 1.0
     assert data["peer"]["speed_ratio_ours_vs_peer"] > 0
     assert set(data["targets"]) == {"check_median", "all_pass"}  # no map target at 15 deg
+
+
+@pytest.mark.hardware  # the suite includes bench_hardware (emulated bus on a pty)
+def test_gathered_suite_quick(tmp_path: Path) -> None:
+    """`python -m benchmarks --quick` runs every benchmark into one JSON file and one
+    table whose rows are the JSON's figures; docs/benchmarks.md is left alone."""
+    from benchmarks import _gather
+
+    page = ROOT / "docs" / "benchmarks.md"
+    page_before = page.read_bytes()
+    command = ["-m", "benchmarks", "--quick", "--jobs", "2", "--out", str(tmp_path)]
+    done = subprocess.run(
+        [sys.executable, *command], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert page.read_bytes() == page_before
+
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["config"]["quick"] is True and summary["config"]["complete"] is True
+    assert {"cpu", "logical_cpus", "packages", "load_average_end"} <= set(summary["machine"])
+    assert list(summary["benchmarks"]) == list(_gather.BENCHMARKS)
+    optional = {"dynamics": "mujoco", "hardware": "dynamixel_sdk"}
+    expected_rows = []
+    for name, entry in summary["benchmarks"].items():
+        if importlib.util.find_spec(optional.get(name, "numpy")) is None:
+            assert entry["status"] == "skipped", (name, entry["reason"])
+        else:
+            assert entry["status"] == "ok", (name, entry["reason"])
+            own = {k for k, v in entry["result"]["targets"].items() if isinstance(v, dict)}
+            assert own and set(entry["targets"]) == own, name
+            for target_name, t in entry["targets"].items():
+                assert t["verdict"] == ("PASS" if t["pass"] else "FAIL"), target_name
+                assert math.isfinite(t["value"]) and math.isfinite(t["threshold"]), target_name
+                assert {"peer_value", "ratio", "comparison", "unit"} <= set(t), target_name
+            shown = sorted(n for f in entry["figures"] for n in f["targets"])
+            assert shown == sorted(own), name  # every target in exactly one row
+            assert any(f["peer"] is not None for f in entry["figures"]), name
+        for f in entry["figures"]:
+            verdicts = "; ".join(entry["targets"][n]["verdict"] for n in f["targets"])
+            status = entry["status"].upper() if f["kind"] == "status" else verdicts or "—"
+            expected_rows.append((f["label"], status))
+
+    def table(text: str) -> list[list[str]]:
+        lines = [line for line in text.splitlines() if line.startswith("| ")]
+        return [[c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]] for line in lines]
+
+    header = list(_gather.TABLE_HEADER)
+    rows = table((tmp_path / "summary.md").read_text())
+    assert rows[0] == header
+    assert [(row[0], row[-1]) for row in rows[2:]] == expected_rows
+
+    # The page shows a full table between its markers, and only there is it replaced.
+    block = page.read_text().split(_gather.START_MARKER)[1].split(_gather.END_MARKER)[0]
+    page_rows = table(block)
+    assert page_rows and page_rows[0] == header, "run `python -m benchmarks --update-docs`"
+    for name in _gather.BENCHMARKS:
+        assert any(row[0].startswith(f"{name}: ") for row in page_rows[2:]), name
+    text = f"a\n{_gather.START_MARKER}\nold\n{_gather.END_MARKER}\nb\n"
+    new = _gather.replace_between_markers(text, "new")
+    assert new == f"a\n{_gather.START_MARKER}\nnew\n{_gather.END_MARKER}\nb\n"
