@@ -144,6 +144,28 @@ def _add_design_option(parser: argparse._ActionsContainer) -> None:
     )
 
 
+def _add_motion_options(parser: argparse.ArgumentParser, *, to_required: bool) -> None:
+    """--from and --to: the input angles [deg] at the start and the end of a motion."""
+    parser.add_argument(
+        "--from",
+        dest="from_deg",
+        nargs=3,
+        type=_number,
+        default=[0.0, 0.0, 0.0],
+        metavar=("T1", "T2", "T3"),
+        help="input angles at the start [deg] (default: 0 0 0)",
+    )
+    parser.add_argument(
+        "--to",
+        dest="to_deg",
+        nargs=3,
+        type=_number,
+        required=to_required,
+        metavar=("T1", "T2", "T3"),
+        help="input angles at the end [deg]",
+    )
+
+
 def _add_json_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
 
@@ -1033,23 +1055,7 @@ def _add_torques_parser(commands: Any) -> None:
         "motion is a minimum-jerk move from --from (default home) to --to in --duration "
         "seconds, or a CSV file (time_s,theta_1_deg,theta_2_deg,theta_3_deg).",
     )
-    torques.add_argument(
-        "--from",
-        dest="from_deg",
-        nargs=3,
-        type=_number,
-        default=[0.0, 0.0, 0.0],
-        metavar=("T1", "T2", "T3"),
-        help="input angles at the start [deg] (default: 0 0 0)",
-    )
-    torques.add_argument(
-        "--to",
-        dest="to_deg",
-        nargs=3,
-        type=_number,
-        metavar=("T1", "T2", "T3"),
-        help="input angles at the end [deg]",
-    )
+    _add_motion_options(torques, to_required=False)
     torques.add_argument(
         "--file",
         metavar="CSV",
@@ -1404,24 +1410,7 @@ def build_parser() -> argparse.ArgumentParser:
         "to --to [deg], followed continuously from the home assembly mode, colliding links "
         "in black, into a self-contained HTML file. Needs the viz extra.",
     )
-    animate.add_argument(
-        "--from",
-        dest="from_deg",
-        nargs=3,
-        type=_number,
-        default=[0.0, 0.0, 0.0],
-        metavar=("T1", "T2", "T3"),
-        help="input angles at the start [deg] (default: 0 0 0)",
-    )
-    animate.add_argument(
-        "--to",
-        dest="to_deg",
-        nargs=3,
-        type=_number,
-        required=True,
-        metavar=("T1", "T2", "T3"),
-        help="input angles at the end [deg]",
-    )
+    _add_motion_options(animate, to_required=True)
     animate.add_argument(
         "--samples",
         type=int,
