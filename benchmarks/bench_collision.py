@@ -22,15 +22,24 @@ What is measured (seeded inputs; the same configurations for every method):
 3. ``fidelity``: the same drawn geometry in two exact forms, side by side: ``convex``
    (every convex piece of :func:`spm_pin.collision.convex_pieces`, every piece pair
    that the rotation-invariant bounds keep, ``pin.computeCollisions``) and ``bvh``
-   (the peer), and the library's hybrid (probes + culling BVHs) with probes off;
-   the answers of every method are compared (pairs at a distance below 1e-9 m are
-   contacts that may go either way).
+   (the peer), and the library's hybrid (certified tables, probes, culling BVHs) with
+   probes off; the answers of every method are compared (pairs at a distance below
+   1e-9 m are contacts that may go either way).
 4. ``distances``: ``robot.distances(q)``, exact distances of all 19 pairs.
 5. ``map``: a gap map (FK + dexterity + collision, no clearance) at 1 deg, with
    ``--workers`` processes (start-up included) and in this process.
 
 Targets: one full check <= 20 us median (random reachable inputs); the 1-degree map
 <= 10 s with 2 workers.
+
+Where the time goes (see :mod:`spm_pin.collision`): table lookups in Python floats
+settle most link pairs (about 3 us for the ten tables of the prototype); the probes
+and culling BVHs of the rest take two Pinocchio calls. Inputs where links collide
+cost little more than free ones, because the tables certify most collisions; the
+tail (p95) comes from BVH traversals where two links pass within a few millimetres
+of each other or touch where no probe looks. ``check_theta`` is dominated by the
+forward kinematics of one input (``spm_pin.forward_kinematics``, about 120 us, and
+about 1 ms for the few inputs that its float fast path leaves to the batch solver).
 """
 
 from __future__ import annotations
@@ -219,6 +228,15 @@ def entry(timing: Timing, **extra: Any) -> dict[str, Any]:
     }
 
 
+def table_summary(checker: CollisionChecker) -> dict[str, Any]:
+    """The certified tables of the check at margin 0: how many, their cells, and the
+    fraction of cells left undecided (checked at run time)."""
+    tables = checker._plan(0.0).tables
+    cells = sum(len(t.state) for t in tables)
+    undecided = sum(sum(1 for v in t.state if v == 2) for t in tables)
+    return {"tables": len(tables), "table_cells": cells, "undecided": undecided / max(cells, 1)}
+
+
 def agreement(
     answers: Sequence[Sequence[tuple[str, str]]],
     reference: Sequence[Sequence[tuple[str, str]]],
@@ -246,6 +264,9 @@ def run(sizes: Sizes, design: spm.SPMDesign, *, quick: bool, workers: int) -> di
     start = time.perf_counter()
     checker = robot.collision_checker
     build_s = time.perf_counter() - start
+    start = time.perf_counter()
+    checker._plan(0.0)  # the tables and engine of margin 0 (made on first use)
+    plan_s = time.perf_counter() - start
     theta = reachable_inputs(design, sizes.checks, rng)
     q = robot.configuration(theta)
     qs = list(q)
@@ -301,8 +322,10 @@ def run(sizes: Sizes, design: spm.SPMDesign, *, quick: bool, workers: int) -> di
             "objects": geometry.ngeoms,
             "pairs": len(geometry.collisionPairs),
             "probes": sum(len(v) for v in checker.probes.values()),
+            **table_summary(checker),
         },
         "checker_build_s": build_s,
+        "plan_build_s": plan_s,
     }
 
     distance_timing, _ = fastest_each(checker.distances, qs[: sizes.distances], 1)
@@ -424,8 +447,12 @@ def report(payload: dict[str, Any]) -> str:
         f"same pairs as the peer: {agreement['same']}, contact ties "
         f"{agreement['contact_ties']}, different {agreement['different']}",
         f"hybrid: {fidelity['hybrid']['objects']} objects, {fidelity['hybrid']['pairs']} pairs "
-        f"({fidelity['hybrid']['probes']} probes); {fidelity['pieces']} convex pieces; "
-        f"checker built in {format_seconds(fidelity['checker_build_s'])}",
+        f"({fidelity['hybrid']['probes']} probes), {fidelity['hybrid']['tables']} tables "
+        f"({fidelity['hybrid']['table_cells']:,} cells, "
+        f"{100 * fidelity['hybrid']['undecided']:.1f}% undecided); "
+        f"{fidelity['pieces']} convex pieces; "
+        f"checker built in {format_seconds(fidelity['checker_build_s'])}, its tables "
+        f"in {format_seconds(fidelity['plan_build_s'])}",
         f"map at {m['step_deg']:g} deg: {m['points']:,} points, {m['workers']} workers "
         f"{format_seconds(m['parallel_s'])} (start-up included), one process "
         f"{format_seconds(m['single_process_s'])}; same result: "

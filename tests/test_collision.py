@@ -14,6 +14,7 @@ import json
 import math
 from typing import Any
 
+import coal
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -401,12 +402,61 @@ def test_never_a_pair_that_shares_a_joint(checker: CollisionChecker, samples: np
         assert checker.in_collision(row[3:], margin=0.0002) == bool(flags.any())
 
 
-def test_theta_and_q_give_the_same_answer(robot: spm.SPMRobot, samples: np.ndarray) -> None:
+def test_theta_and_q_give_the_same_answer(
+    robot: spm.SPMRobot, checker: CollisionChecker, samples: np.ndarray
+) -> None:
     for row in samples[:8]:
         assert robot.collisions(row[:3]) == robot.collisions(row[3:])
         from_theta, from_q = robot.distances(row[:3]), robot.distances(row[3:])
         assert list(from_theta) == list(from_q) == list(LINK_PAIRS)
         np.testing.assert_allclose(list(from_theta.values()), list(from_q.values()), atol=1e-12)
+    # The checker builds q from theta in floats: the robot's q, to rounding, closed.
+    for row in samples:
+        q = checker.configuration(row[:3])
+        np.testing.assert_allclose(q, row[3:], rtol=0.0, atol=1e-12)
+        assert robot.closure_residual(q) <= 1e-10
+    theta = samples[0, :3] + np.array([4, -2, 6]) * math.pi  # whole turns are kept
+    np.testing.assert_allclose(
+        checker.configuration(theta), robot.configuration(theta), rtol=0.0, atol=1e-12
+    )
+
+
+def test_random_sequence_matches_the_bvh_peer(
+    robot: spm.SPMRobot, checker: CollisionChecker
+) -> None:
+    """The check keeps state between calls (pairs switched on and off): a long random
+    sequence, mixing margins, ``in_collision`` and inputs, against plain Pinocchio with
+    one BVH per link."""
+    gm = pin.GeometryModel()
+    for geometry in robot.collision_model.geometryObjects:
+        gm.addGeometryObject(geometry)
+    for a, b in LINK_PAIRS:
+        gm.addCollisionPair(pin.CollisionPair(gm.getGeometryId(a), gm.getGeometryId(b)))
+    datas = {}
+    for margin in (0.0, 0.0003):
+        datas[margin] = pin.GeometryData(gm)
+        for request in datas[margin].collisionRequests:
+            request.security_margin = margin
+    data = robot.model.createData()
+    rng = np.random.default_rng(21)
+    theta = rng.uniform(-math.pi, math.pi, size=(1500, 3))
+    theta = theta[spm.forward_kinematics(theta).reachable][:150]
+    seen = 0
+    for q in robot.configuration(theta):
+        margin = float(rng.choice([0.0, 0.0003]))
+        pin.computeCollisions(robot.model, data, gm, datas[margin], q, False)
+        truth = [
+            p for k, p in enumerate(LINK_PAIRS) if datas[margin].collisionResults[k].isCollision()
+        ]
+        if rng.uniform() < 0.3:
+            assert checker.in_collision(q, margin=margin) == bool(truth)
+        mine = checker.collisions(q, margin=margin)
+        if mine != truth:
+            distances = checker.distances(q)
+            for pair in set(mine) ^ set(truth):
+                assert abs(distances[pair] - margin) < TOL["tie"], (pair, margin)
+        seen += len(truth)
+    assert seen > 200
 
 
 @settings(max_examples=25)
@@ -430,6 +480,89 @@ def test_torsion_leaves_every_pair_but_the_base_alone(
     for pair in LINK_PAIRS:
         if pair[0] != "base":
             assert first[pair] == pytest.approx(second[pair], abs=TOL["torsion"]), pair
+
+
+# ---------------------------------------------------------------- tables
+def _mesh_bvh(meshes: list[trimesh.Trimesh]) -> Any:
+    """A coal BVH of the triangles of some meshes (the reference of the table tests)."""
+    merged = trimesh.util.concatenate(meshes)
+    model = coal.BVHModelOBBRSS()
+    model.beginModel(len(merged.faces), len(merged.vertices))
+    model.addVertices(np.asarray(merged.vertices, dtype=float))
+    model.addTriangles(np.asarray(merged.faces, dtype=np.int64))
+    model.endModel()
+    return model
+
+
+@pytest.mark.parametrize(("margin", "include_fixed"), [(0.0, True), (0.0005, False)])
+def test_tables_are_certified(
+    robot: spm.SPMRobot, checker: CollisionChecker, margin: float, include_fixed: bool
+) -> None:
+    """A table cell marked free or colliding is so for every angle in it: points drawn
+    in the cells next to another state (where the bounds are tight) and in random
+    cells, with the other joints at random and any number of turns (the loops need
+    not close: only the two links' relative pose matters), checked on the drawn
+    meshes with coal. Free: the parts the table covers (both links, or the symmetric
+    parts of the first against the second) keep more than the margin apart;
+    colliding: the two links collide."""
+    rng = np.random.default_rng(8)
+    plan = checker._plan(margin, include_fixed)
+    assert len(plan.tables) == 10  # 3 pairs of proximal links, 4 tubes, 3 hub units
+    parts = {name: {p.name: p.mesh for p in ps} for name, ps in link_parts(robot.design).items()}
+    request = coal.CollisionRequest()
+    request.security_margin = margin
+    request.break_distance = 0.0
+    checked = {0: 0, 1: 0}
+    for table in plan.tables:
+        link_a, link_b = table.pair
+        if table.unit is None:
+            covered = list(parts[link_a].values())
+        else:  # the symmetric parts of the first link
+            covered = [
+                parts[link_a][name] for (k, name) in checker._orders if LINK_NAMES[k] == link_a
+            ]
+        first, second = _mesh_bvh(covered), _mesh_bvh(list(parts[link_b].values()))
+        whole = _mesh_bvh(list(parts[link_a].values()))
+        # (Drop the repeated last row and column.)
+        state = np.array(table.state).reshape(table.rows, table.columns)[:-1]
+        if table.columns > 1:
+            state = state[:, :-1]
+        rows, columns = state.shape
+        edge = np.zeros_like(state, dtype=bool)
+        for axis in (0, 1):
+            for step in (-1, 1):
+                edge |= state != np.roll(state, step, axis=axis)
+        cells = np.argwhere(edge & (state != 2))
+        cells = np.vstack(
+            [cells, np.argwhere(state != 2)[rng.integers(0, (state != 2).sum(), 100)]]
+        )
+        for row, column in np.repeat(cells, 2, axis=0):  # two points per cell
+            q = rng.uniform(-3 * math.pi, 3 * math.pi, robot.model.nq)
+            alpha = (row + rng.uniform()) * table.period / rows + table.period * rng.integers(-9, 9)
+            base = 0.0 if table.a == robot.model.nq else q[table.a]
+            q[table.b] = base + alpha
+            if table.c < robot.model.nq:
+                q[table.c] = (
+                    column + rng.uniform()
+                ) * 2 * math.pi / columns + 2 * math.pi * rng.integers(-3, 3)
+            placements = robot.placements(q)
+            ta = coal.Transform3s(np.array(placements[link_a].rotation), np.zeros(3))
+            tb = coal.Transform3s(np.array(placements[link_b].rotation), np.zeros(3))
+            result = coal.CollisionResult()
+            if state[row, column] == 0:
+                assert not coal.collide(first, ta, second, tb, request, result), (
+                    table.pair,
+                    row,
+                    column,
+                )
+            else:
+                assert coal.collide(whole, ta, second, tb, request, result), (
+                    table.pair,
+                    row,
+                    column,
+                )
+            checked[int(state[row, column])] += 1
+    assert checked[0] > 1500 and checked[1] > 400, checked
 
 
 # ------------------------------------------------------------------- probes
