@@ -57,7 +57,7 @@ from ._common import (  # noqa: E402
 
 #: Seed of the timed problem; the accuracy seeds follow it.
 SEED = 20_240_905
-#: The issue's targets.
+#: The project's targets.
 TARGET_SECONDS = 2.0
 TARGET_PARAMETERS = 7
 

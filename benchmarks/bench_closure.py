@@ -102,7 +102,7 @@ PEER_LABELS = {
     "lm_exact_jacobian_tight": "least_squares lm + exact Jacobian, tol 1e-15",
 }
 
-#: The issue's targets.
+#: The project's targets.
 TARGET_WARM_MEDIAN_S = 25e-6
 TARGET_SPEEDUP = 20.0
 TARGET_RESIDUAL = 1e-12
@@ -356,7 +356,7 @@ def bench_peer(
 
 # ---------------------------------------------------------------------- targets
 def evaluate_targets(results: dict[str, dict[str, Any]], peer: dict[str, Any]) -> dict[str, Any]:
-    """The issue's targets, each with value, threshold and pass flag."""
+    """The project's targets, each with value, threshold and pass flag."""
     residual = max(
         results[key]["max_residual"] for key in ("warm_1deg", "warm_servo", "cold", "follow_study")
     )

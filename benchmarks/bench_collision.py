@@ -85,7 +85,7 @@ SEED = 20_240_612
 #: Pairs nearer than this [m] are contacts whose answer may go either way.
 TIE_DISTANCE = 1e-9
 
-#: The issue's targets.
+#: The project's targets.
 TARGET_CHECK_MEDIAN_S = 20e-6
 TARGET_MAP_S = 10.0
 TARGET_MAP_STEP_DEG = 1.0
@@ -389,7 +389,7 @@ def bench_map(design: spm.SPMDesign, step: float, workers: int) -> dict[str, Any
 
 
 def evaluate_targets(payload: dict[str, Any]) -> dict[str, Any]:
-    """Pass/fail of the issue's targets (the map target only at 1 deg)."""
+    """Pass/fail of the project's targets (the map target only at 1 deg)."""
     results = payload["results"]
     targets: dict[str, Any] = {
         "check_median": target(

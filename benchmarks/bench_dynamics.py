@@ -78,7 +78,7 @@ PASSIVE_START = np.radians([20.0, -10.0, 5.0])
 MOVE_GOAL = np.radians([60.0, 90.0, 120.0])
 MOVE_TIME = 1.0
 
-#: The issue's targets.
+#: The project's targets.
 TARGET_STEPS_PER_SECOND = 50_000.0
 TARGET_DRIFT = 1e-10
 TARGET_ENERGY = 1e-6
@@ -333,7 +333,7 @@ def accuracy(
 def evaluate_targets(
     results: dict[str, dict[str, Any]], acc: dict[str, Any], drift: float
 ) -> dict[str, Any]:
-    """The issue's targets, each with value, threshold and pass flag."""
+    """The project's targets, each with value, threshold and pass flag."""
     stiff = acc["mujoco_stiff"]
     theta_error = max(
         stiff["passive_hanging"]["max_theta_error_rad"], stiff["driven"]["max_theta_error_rad"]

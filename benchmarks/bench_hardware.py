@@ -70,7 +70,7 @@ from ._common import (  # noqa: E402
 
 #: The study's demonstration input [deg].
 DEMO_DEG = (60.0, 90.0, 120.0)
-#: The issue's target for the software part of a cycle [Hz].
+#: The project's target for the software part of a cycle [Hz].
 TARGET_SOFTWARE_RATE = 500.0
 #: Loop rate the streamed path is planned for [Hz] (faster than the loop runs, so the
 #: commanded speed stays below the guard's limit).

@@ -89,7 +89,7 @@ COPLANAR_TOL = 1e-9
 #: |b_ii| or |det A| at or below this carry no sign (on a singularity).
 SIGN_TOL = 1e-9
 
-#: The issue's targets.
+#: The project's targets.
 TARGET_FK_PER_SECOND = 100_000.0
 TARGET_FK_RESIDUAL = 1e-12
 TARGET_FK_SPEEDUP = 100.0
@@ -440,7 +440,7 @@ def bench_peer(
 
 
 def evaluate_targets(results: dict[str, dict[str, Any]], peer: dict[str, Any]) -> dict[str, Any]:
-    """The issue's targets, each with value, threshold and pass flag."""
+    """The project's targets, each with value, threshold and pass flag."""
     fk = results["fk_home_reachable"]
     residual = max(fk["max_residual"], fk["max_reported_residual"])
     targets: dict[str, Any] = {

@@ -1,6 +1,6 @@
 """The design of a spherical parallel manipulator: parameters, validation, presets, TOML.
 
-Kinematic parameters (DESIGN.md section 1):
+Kinematic parameters (docs/conventions.md):
 
 * ``alpha1`` [rad]: proximal link angle, the angle between u_i and w_i.
 * ``alpha2`` [rad]: distal link angle, the angle between w_i and v_i.
@@ -14,7 +14,7 @@ The home configuration (theta = 0, R = identity) is built from these:
 v_i0 = [sin b cos(eta_i - 90deg), sin b sin(eta_i - 90deg), cos b], and w_i0 is the
 unit vector at angle alpha1 from u_i and alpha2 from v_i0 on the side where
 b_ii = (u_i x w_i0) . v_i0 > 0 (the home working mode). For the coaxial prototype
-this gives w_i0 = [sin a1 cos eta_i, sin a1 sin eta_i, -cos a1], as in DESIGN.md.
+this gives w_i0 = [sin a1 cos eta_i, sin a1 sin eta_i, -cos a1], as in docs/conventions.md.
 Input theta_i turns w_i about u_i by theta_i (right-handed about u_i; for
 u = [0, 0, -1] that is clockwise seen from above).
 

@@ -2,7 +2,7 @@ r"""Workspace maps of a coaxial SPM: reachability, singularities, dexterity, col
 
 Adding one angle c to all three inputs of a coaxial SPM only turns the platform
 about the common axis (by -c), so every quantity mapped here depends on the gaps
-between neighbouring proximal links alone (DESIGN.md section 1). With w_i at azimuth
+between neighbouring proximal links alone (docs/conventions.md). With w_i at azimuth
 eta_i - theta_i, the gap from link i to the next one counterclockwise is
 
     D12 = (eta_2 - theta_2) - (eta_1 - theta_1),  D23 = (eta_3 - theta_3) - (eta_2 - theta_2),

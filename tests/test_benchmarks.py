@@ -35,7 +35,7 @@ from benchmarks.bench_kinematics import (  # noqa: E402
 
 #: Tolerances of this file.
 TOL = {
-    "residual": 1e-12,  # the closure target
+    "residual": 1e-12,  # the closure target
     "axes": 1e-12,  # independent w_i against the library's
     "percentile": 1e-12,
 }

@@ -55,7 +55,7 @@ def test_prototype_parameters() -> None:
     np.testing.assert_array_equal(d.u, np.tile([0.0, 0.0, -1.0], (3, 1)))
     assert d.is_coaxial
     assert d == spm.SPMDesign.preset("prototype")
-    # DESIGN.md: w_i0 = [sin a1 cos eta_i, sin a1 sin eta_i, -cos a1],
+    # docs/conventions.md: w_i0 = [sin a1 cos eta_i, sin a1 sin eta_i, -cos a1],
     # v_i0 = [sin b cos(eta_i - 90), sin b sin(eta_i - 90), cos b].
     eta = np.radians([0.0, 120.0, 240.0])
     a1, b = math.radians(45.0), math.radians(90.0)

@@ -277,7 +277,7 @@ def test_passive_fall_keeps_the_loops_closed(
 
 
 def test_energy_is_conserved_over_10_s(hanging: D.ClosedLoopDynamics) -> None:
-    """The issue's target: a frictionless passive motion keeps its energy to 1e-6
+    """The project's target: a frictionless passive motion keeps its energy to 1e-6
     (relative to its largest kinetic energy) over 10 s at 1 kHz (rk4)."""
     sim = D.Simulator(hanging, dt=1e-3, integrator="rk4", state=np.radians([20.0, -10.0, 5.0]))
     result = sim.run(10.0, record_every=10)

@@ -16,7 +16,7 @@ from spm_pin.cli import main
 from spm_pin.model.export import END_BODIES, JOINT_NAMES, MJCF_NAME, URDF_NAME, export
 from spm_pin.model.geometry import LINK_NAMES, link_inertias, link_meshes
 
-#: The committed prototype files (DESIGN.md section 3).
+#: The committed prototype files (urdf/, see urdf/README.md).
 URDF_DIR = Path(__file__).resolve().parents[1] / "urdf"
 
 #: Tolerances, by what they compare.

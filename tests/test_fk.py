@@ -233,7 +233,7 @@ def test_home_and_paper_input(prototype: spm.SPMDesign) -> None:
     np.testing.assert_allclose(fk.R, np.eye(3), atol=1e-14)
     np.testing.assert_allclose(fk.v, prototype.v0, atol=1e-14)
     np.testing.assert_allclose(fk.w, prototype.w0, atol=1e-14)
-    # DESIGN.md: w_i = [sin a1 cos(eta_i - theta_i), sin a1 sin(eta_i - theta_i), -cos a1].
+    # Conventions: w_i = [sin a1 cos(eta_i - theta_i), sin a1 sin(eta_i - theta_i), -cos a1].
     theta = np.radians([60.0, 90.0, 120.0])
     fk = spm.forward_kinematics(theta, prototype)
     eta = np.radians([0.0, 120.0, 240.0])

@@ -31,7 +31,7 @@ TOL = {
     "envelope": 0.006,  # the bounding box against 200 x 200 x 290 mm [m]
 }
 
-#: The prototype's envelope at home [m] (DESIGN.md section 2).
+#: The prototype's envelope at home [m]: about 200 x 200 x 290 mm.
 ENVELOPE = np.array([0.200, 0.200, 0.290])
 #: Links that share a joint (including through the loop closures): they touch.
 ADJACENT = {

@@ -6,9 +6,9 @@
     spm.xml             MJCF: the same tree under one root body, and <equality> welds
                         that close legs 2 and 3 on the platform (Pinocchio's
                         buildModelAndConstraintsFromMJCF and MuJoCo both load it)
-    meshes/<link>.stl   binary STL of every link (DESIGN.md section 2 names)
+    meshes/<link>.stl   binary STL of every link (the names of docs/conventions.md)
 
-The tree (DESIGN.md section 2): ``base`` -> ``u_i`` -> ``proximal_i`` -> ``w_i`` ->
+The tree (docs/conventions.md): ``base`` -> ``u_i`` -> ``proximal_i`` -> ``w_i`` ->
 ``distal_i`` -> ``v_i`` -> ``platform`` for leg 1, ``platform_leg2`` / ``platform_leg3``
 for legs 2 and 3: end bodies that are the same rigid platform, welded to ``platform``
 by the closures. Every joint axis passes through O and every joint placement is the

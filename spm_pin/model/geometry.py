@@ -4,7 +4,7 @@ Every joint axis passes through the centre O and the robot tree uses identity jo
 placements, so every link frame coincides with the world frame at home (theta = 0,
 R = identity). Each mesh is therefore given in world coordinates at home [m].
 
-The links (DESIGN.md section 2; sizes from :class:`~spm_pin.design.LinkDimensions`):
+The links (see docs/conventions.md; sizes from :class:`~spm_pin.design.LinkDimensions`):
 
 * ``base``: a round plate (``base_radius``, ``base_thickness``) centred ``base_depth``
   below O on the base axis (the mean of the u_i, -z for the coaxial SPM); three
@@ -66,7 +66,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-#: The link names of DESIGN.md section 2, in tree order.
+#: The link names of docs/conventions.md, in tree order.
 LINK_NAMES: tuple[str, ...] = (
     "base",
     "proximal_1",

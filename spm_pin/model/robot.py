@@ -1,6 +1,6 @@
 r"""The SPM as a Pinocchio model: a kinematic tree of nine revolute joints plus two welds.
 
-Model conventions (DESIGN.md sections 1 and 2):
+Model conventions (docs/conventions.md):
 
 * Every joint axis passes through the centre O and every joint placement is the
   identity, so q = 0 is home, where every link frame equals the world frame.
