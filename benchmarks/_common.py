@@ -9,6 +9,9 @@ This module imports only the standard library, so a benchmark can call
 
     import numpy as np  # noqa: E402
 
+Each ``bench_<name>.py`` builds its command line with :func:`standard_parser` and
+hands it to :func:`run_main` (run, print the report, write the JSON).
+
 Timings use :func:`time.perf_counter`; every timed callable gets warm-up calls first,
 and the garbage collector is paused while a sample runs (as :mod:`timeit` does).
 Statistics are the median and the tail (p95, p99) of the samples.
@@ -16,6 +19,7 @@ Statistics are the median and the tail (p95, p99) of the samples.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import datetime
 import functools
@@ -45,10 +49,13 @@ __all__ = [
     "limit_to_one_thread",
     "machine_info",
     "percentile",
+    "run_main",
+    "standard_parser",
     "target",
     "time_call",
     "time_each",
     "to_jsonable",
+    "with_all_pass",
     "write_json",
 ]
 
@@ -324,6 +331,65 @@ def target(value: float, threshold: float, *, at_least: bool, unit: str = "") ->
         "unit": unit,
         "pass": bool(passed and math.isfinite(value)),
     }
+
+
+def with_all_pass(targets: dict[str, Any]) -> dict[str, Any]:
+    """``targets`` (records of :func:`target`) with ``"all_pass"`` added: every one passed."""
+    targets["all_pass"] = all(t["pass"] for t in targets.values())
+    return targets
+
+
+# --------------------------------------------------------------------- command line
+def standard_parser(
+    name: str, description: str, *, quick_help: str = "small sizes (smoke test)"
+) -> argparse.ArgumentParser:
+    """The options every benchmark has: ``--out`` (its JSON file) and ``--quick``.
+
+    Args:
+        name: The benchmark's name: module ``benchmarks.bench_<name>``, default output
+            ``benchmarks/results/<name>.json``.
+        description: The ``--help`` text.
+        quick_help: Help of ``--quick``.
+
+    Returns:
+        The parser; a benchmark adds its own options to it.
+    """
+    parser = argparse.ArgumentParser(
+        prog=f"python -m benchmarks.bench_{name}", description=description
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=default_output(name),
+        help=f"JSON output file (default: benchmarks/results/{name}.json)",
+    )
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    return parser
+
+
+def run_main(
+    parser: argparse.ArgumentParser,
+    run: Callable[[argparse.Namespace], dict[str, Any]],
+    report: Callable[[dict[str, Any]], str],
+    argv: Sequence[str] | None,
+) -> int:
+    """A benchmark's ``main``: parse ``argv``, run, print the report, write the JSON.
+
+    Args:
+        parser: From :func:`standard_parser` (it must have ``--out``).
+        run: The options to the JSON payload.
+        report: The payload to the printed summary.
+        argv: The arguments (None: ``sys.argv[1:]``).
+
+    Returns:
+        The exit code, 0.
+    """
+    args = parser.parse_args(argv)
+    payload = run(args)
+    print(report(payload))
+    out = write_json(args.out, payload)
+    print(f"\nJSON written to {out}")
+    return 0
 
 
 def format_seconds(seconds: float) -> str:

@@ -25,7 +25,6 @@ What is measured (seeded synthetic readings of a perturbed prototype: encoder st
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import sys
@@ -46,13 +45,14 @@ from spm_pin import calibration as cal  # noqa: E402
 
 from ._common import (  # noqa: E402
     Timing,
-    default_output,
     format_seconds,
     format_table,
     machine_info,
+    run_main,
+    standard_parser,
     target,
     time_call,
-    write_json,
+    with_all_pass,
 )
 
 #: Seed of the timed problem; the accuracy seeds follow it.
@@ -162,7 +162,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
             float(analytic["identified"]), TARGET_PARAMETERS, at_least=True
         ),
     }
-    targets["all_pass"] = all(t["pass"] for t in targets.values())
+    with_all_pass(targets)
     return {
         "benchmark": "calibration",
         "machine": machine_info(("numpy", "scipy"), {"spm_pin": spm.__version__}),
@@ -221,7 +221,7 @@ def report(payload: dict[str, Any]) -> str:
     notes = (
         f"speed ours/peer: {peer['speed_ratio_ours_vs_peer']:.1f}x; largest estimate "
         f"difference {peer['max_estimate_difference_deg']:.1e} deg\n"
-        f"parse 100 rows: median {format_seconds(parse['median_s'])}\n"
+        f"parse {parse['rows']} rows: median {format_seconds(parse['median_s'])}\n"
         f"accuracy over {acc['seeds']} seeds: max |error|/std {acc['max_abs_z']:.2f}, "
         f"{100 * acc['fraction_within_2_std']:.0f}% within 2 std, Mahalanobis per "
         f"parameter {acc['mean_mahalanobis_per_parameter']:.2f} (1 when the covariances "
@@ -244,30 +244,16 @@ def report(payload: dict[str, Any]) -> str:
     return "\n\n".join([head, table, notes, "\n".join(lines)])
 
 
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command-line options."""
-    parser = argparse.ArgumentParser(
-        prog="python -m benchmarks.bench_calibration",
-        description="Speed and accuracy of spm-pin's calibration, next to finite differences.",
-    )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=default_output("calibration"),
-        help="JSON output file (default: benchmarks/results/calibration.json)",
-    )
-    parser.add_argument("--quick", action="store_true", help="few repeats (smoke test)")
-    return parser.parse_args(argv)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the summary, write the JSON; returns the exit code."""
-    args = parse_args(argv)
-    payload = run(QUICK if args.quick else FULL, quick=args.quick)
-    print(report(payload))
-    out = write_json(args.out, payload)
-    print(f"\nJSON written to {out}")
-    return 0
+    parser = standard_parser(
+        "calibration",
+        "Speed and accuracy of spm-pin's calibration, next to finite differences.",
+        quick_help="few repeats (smoke test)",
+    )
+    return run_main(
+        parser, lambda args: run(QUICK if args.quick else FULL, quick=args.quick), report, argv
+    )
 
 
 if __name__ == "__main__":

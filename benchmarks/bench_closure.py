@@ -44,12 +44,10 @@ pass of warm-up calls first; median, p95 and p99 over the calls.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 from ._common import limit_to_one_thread
@@ -67,15 +65,16 @@ from spm_pin.closure import DEFAULT_TOL  # noqa: E402
 
 from ._common import (  # noqa: E402
     Timing,
-    default_output,
     format_count,
     format_seconds,
     format_table,
     machine_info,
+    run_main,
+    standard_parser,
     target,
     time_call,
     time_each,
-    write_json,
+    with_all_pass,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -369,8 +368,7 @@ def evaluate_targets(results: dict[str, dict[str, Any]], peer: dict[str, Any]) -
         ),
         "max_residual": target(residual, TARGET_RESIDUAL, at_least=False),
     }
-    targets["all_pass"] = all(t["pass"] for t in targets.values())
-    return targets
+    return with_all_pass(targets)
 
 
 # ------------------------------------------------------------------------- report
@@ -512,30 +510,15 @@ def _reachable(robot: spm.SPMRobot, n: int, rng: np.random.Generator) -> FloatAr
     return np.concatenate(kept)[:n]
 
 
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command-line options."""
-    parser = argparse.ArgumentParser(
-        prog="python -m benchmarks.bench_closure",
-        description="Speed and accuracy of spm-pin's loop-closure solver, next to scipy.",
-    )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=default_output("closure"),
-        help="JSON output file (default: benchmarks/results/closure.json)",
-    )
-    parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
-    return parser.parse_args(argv)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the summary, write the JSON; returns the exit code."""
-    args = parse_args(argv)
-    payload = run(QUICK if args.quick else FULL, quick=args.quick)
-    print(report(payload))
-    out = write_json(args.out, payload)
-    print(f"\nJSON written to {out}")
-    return 0
+    parser = standard_parser(
+        "closure",
+        "Speed and accuracy of spm-pin's loop-closure solver, next to scipy.",
+    )
+    return run_main(
+        parser, lambda args: run(QUICK if args.quick else FULL, quick=args.quick), report, argv
+    )
 
 
 if __name__ == "__main__":

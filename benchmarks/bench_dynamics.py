@@ -36,7 +36,6 @@ load matters (the JSON records the machine); compare runs on the same machine.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 from collections.abc import Sequence
@@ -56,14 +55,15 @@ from spm_pin import dynamics as D  # noqa: E402
 
 from ._common import (  # noqa: E402
     Timing,
-    default_output,
     format_rate,
     format_seconds,
     format_table,
     machine_info,
+    run_main,
+    standard_parser,
     target,
     time_call,
-    write_json,
+    with_all_pass,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -354,8 +354,7 @@ def evaluate_targets(
             theta_error, TARGET_MUJOCO_THETA, at_least=False, unit="rad"
         ),
     }
-    targets["all_pass"] = all(t["pass"] for t in targets.values())
-    return targets
+    return with_all_pass(targets)
 
 
 # ------------------------------------------------------------------------- report
@@ -460,30 +459,16 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     }
 
 
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command-line options."""
-    parser = argparse.ArgumentParser(
-        prog="python -m benchmarks.bench_dynamics",
-        description="Speed and accuracy of spm-pin's constrained dynamics, next to MuJoCo.",
-    )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=default_output("dynamics"),
-        help="JSON output file (default: benchmarks/results/dynamics.json)",
-    )
-    parser.add_argument("--quick", action="store_true", help="short runs (smoke test)")
-    return parser.parse_args(argv)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the summary, write the JSON; returns the exit code."""
-    args = parse_args(argv)
-    payload = run(QUICK if args.quick else FULL, quick=args.quick)
-    print(report(payload))
-    out = write_json(args.out, payload)
-    print(f"\nJSON written to {out}")
-    return 0
+    parser = standard_parser(
+        "dynamics",
+        "Speed and accuracy of spm-pin's constrained dynamics, next to MuJoCo.",
+        quick_help="short runs (smoke test)",
+    )
+    return run_main(
+        parser, lambda args: run(QUICK if args.quick else FULL, quick=args.quick), report, argv
+    )
 
 
 if __name__ == "__main__":

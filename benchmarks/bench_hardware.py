@@ -28,11 +28,9 @@ the terminal but not the wire. What is measured:
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 from ._common import limit_to_one_thread
@@ -57,15 +55,16 @@ from spm_pin.hardware.driver import STATE_BLOCK  # noqa: E402
 
 from ._common import (  # noqa: E402
     Timing,
-    default_output,
     format_count,
     format_rate,
     format_seconds,
     format_table,
     machine_info,
+    run_main,
+    standard_parser,
     target,
     time_each,
-    write_json,
+    with_all_pass,
 )
 
 #: The study's demonstration input [deg].
@@ -255,10 +254,13 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             "timing": "perf_counter per call or per cycle after warm-up; median/p95/p99",
         },
         "results": results,
-        "targets": {
-            "software_per_second": target(software, TARGET_SOFTWARE_RATE, at_least=True, unit="Hz"),
-            "all_pass": software >= TARGET_SOFTWARE_RATE,
-        },
+        "targets": with_all_pass(
+            {
+                "software_per_second": target(
+                    software, TARGET_SOFTWARE_RATE, at_least=True, unit="Hz"
+                )
+            }
+        ),
     }
 
 
@@ -336,30 +338,18 @@ def report(payload: dict[str, Any]) -> str:
     return "\n\n".join([head, table, notes, lines])
 
 
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command-line options."""
-    parser = argparse.ArgumentParser(
-        prog="python -m benchmarks.bench_hardware",
-        description="Rate and stage times of the model-servo sync loop on the emulated bus.",
-    )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=default_output("hardware"),
-        help="JSON output file (default: benchmarks/results/hardware.json)",
-    )
-    parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
-    return parser.parse_args(argv)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the summary, write the JSON; returns the exit code."""
-    args = parse_args(argv)
-    payload = run(SIZES["quick" if args.quick else "full"], quick=args.quick)
-    print(report(payload))
-    out = write_json(args.out, payload)
-    print(f"\nJSON written to {out}")
-    return 0
+    parser = standard_parser(
+        "hardware",
+        "Rate and stage times of the model-servo sync loop on the emulated bus.",
+    )
+    return run_main(
+        parser,
+        lambda args: run(SIZES["quick" if args.quick else "full"], quick=args.quick),
+        report,
+        argv,
+    )
 
 
 if __name__ == "__main__":

@@ -43,7 +43,6 @@ import dataclasses
 import math
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 from ._common import limit_to_one_thread
@@ -60,16 +59,17 @@ from spm_pin.rotations import matrix_from_quaternion  # noqa: E402
 
 from ._common import (  # noqa: E402
     Timing,
-    default_output,
     format_count,
     format_rate,
     format_seconds,
     format_table,
     machine_info,
+    run_main,
+    standard_parser,
     target,
     time_call,
     time_each,
-    write_json,
+    with_all_pass,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -455,8 +455,7 @@ def evaluate_targets(results: dict[str, dict[str, Any]], peer: dict[str, Any]) -
             results["ik_reachable"]["per_second"], TARGET_IK_PER_SECOND, at_least=True, unit="1/s"
         ),
     }
-    targets["all_pass"] = all(t["pass"] for t in targets.values())
-    return targets
+    return with_all_pass(targets)
 
 
 # ------------------------------------------------------------------------- report
@@ -598,36 +597,24 @@ def run(sizes: Sizes, design: spm.SPMDesign, *, quick: bool) -> dict[str, Any]:
     }
 
 
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command-line options."""
-    parser = argparse.ArgumentParser(
-        prog="python -m benchmarks.bench_kinematics",
-        description="Speed and accuracy of spm-pin's FK and IK, next to scipy fsolve.",
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark, print the summary, write the JSON; returns the exit code."""
+    parser = standard_parser(
+        "kinematics",
+        "Speed and accuracy of spm-pin's FK and IK, next to scipy fsolve.",
     )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=default_output("kinematics"),
-        help="JSON output file (default: benchmarks/results/kinematics.json)",
-    )
-    parser.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
     parser.add_argument(
         "--design",
         default="prototype",
         help="design preset: prototype (default) or agile_eye",
     )
-    return parser.parse_args(argv)
 
+    def run_with(args: argparse.Namespace) -> dict[str, Any]:
+        return run(
+            QUICK if args.quick else FULL, spm.SPMDesign.preset(args.design), quick=args.quick
+        )
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the benchmark, print the summary, write the JSON; returns the exit code."""
-    args = parse_args(argv)
-    design = spm.SPMDesign.preset(args.design)
-    payload = run(QUICK if args.quick else FULL, design, quick=args.quick)
-    print(report(payload))
-    out = write_json(args.out, payload)
-    print(f"\nJSON written to {out}")
-    return 0
+    return run_main(parser, run_with, report, argv)
 
 
 if __name__ == "__main__":
