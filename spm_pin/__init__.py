@@ -70,56 +70,48 @@ if TYPE_CHECKING:
     from .workspace import WorkspaceMap, WorkspaceSettings, workspace_map
 
 #: Names served lazily from submodules that import Pinocchio (``import spm_pin`` stays
-#: light): name -> module.
-_LAZY = {"SPMRobot": ".model.robot", "build_robot": ".model.robot"}
-#: The generic loop-closure solver (Pinocchio).
-_LAZY.update(
-    dict.fromkeys(("ClosedLoop", "FrameTargetResult", "PathResult", "ProjectionResult"), ".closure")
-)
-#: Constrained dynamics, simulation and servos (Pinocchio; MuJoCo and matplotlib only
-#: inside the functions that need them).
-_LAZY.update(
-    dict.fromkeys(
-        (
-            "ClosedLoopDynamics",
-            "ForwardDynamicsResult",
-            "InverseDynamicsResult",
-            "JointFriction",
-            "ServoCheck",
-            "ServoController",
-            "ServoModel",
-            "SimulationResult",
-            "Simulator",
-            "Trajectory",
-            "XM540_W150",
-            "check_servo",
-            "forward_dynamics",
-            "holding_torques",
-            "inverse_dynamics",
-            "plot_torques",
-            "simulate_mujoco",
-        ),
-        ".dynamics",
-    )
-)
-#: Self-collision (Pinocchio, coal) and workspace maps.
-_LAZY.update(dict.fromkeys(("CollisionChecker", "CollisionReport"), ".collision"))
-_LAZY.update(dict.fromkeys(("WorkspaceMap", "WorkspaceSettings", "workspace_map"), ".workspace"))
-#: Calibration (scipy is imported only when calibrating).
-_LAZY.update(
-    dict.fromkeys(
-        (
-            "CalibrationResult",
-            "IdentifiabilityWarning",
-            "Readings",
-            "calibrate",
-            "load_readings",
-            "plan_poses",
-            "synthetic_readings",
-        ),
-        ".calibration",
-    )
-)
+#: light), by module; each is also in that module's ``__all__`` (checked by the tests).
+_LAZY_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".model.robot": ("SPMRobot", "build_robot"),
+    # The generic loop-closure solver (Pinocchio).
+    ".closure": ("ClosedLoop", "FrameTargetResult", "PathResult", "ProjectionResult"),
+    # Constrained dynamics, simulation and servos (Pinocchio; MuJoCo and matplotlib only
+    # inside the functions that need them).
+    ".dynamics": (
+        "ClosedLoopDynamics",
+        "ForwardDynamicsResult",
+        "InverseDynamicsResult",
+        "JointFriction",
+        "ServoCheck",
+        "ServoController",
+        "ServoModel",
+        "SimulationResult",
+        "Simulator",
+        "Trajectory",
+        "XM540_W150",
+        "check_servo",
+        "forward_dynamics",
+        "holding_torques",
+        "inverse_dynamics",
+        "plot_torques",
+        "simulate_mujoco",
+    ),
+    # Self-collision (Pinocchio, coal) and workspace maps.
+    ".collision": ("CollisionChecker", "CollisionReport"),
+    ".workspace": ("WorkspaceMap", "WorkspaceSettings", "workspace_map"),
+    # Calibration (scipy is imported only when calibrating).
+    ".calibration": (
+        "CalibrationResult",
+        "IdentifiabilityWarning",
+        "Readings",
+        "calibrate",
+        "load_readings",
+        "plan_poses",
+        "synthetic_readings",
+    ),
+}
+#: name -> module of the lazy names.
+_LAZY = {name: module for module, names in _LAZY_EXPORTS.items() for name in names}
 
 
 def __getattr__(name: str) -> Any:

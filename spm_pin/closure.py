@@ -68,6 +68,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from .errors import ConvergenceError, FileFormatError, InputError, SingularityError
+from .kinematics._common import check_count, float_array, require_finite
 
 __all__ = [
     "CLOSED_TOL",
@@ -563,15 +564,12 @@ class ClosedLoop:
             array: FloatArray = actuated
         else:
             n = self.n_actuated
-            try:
-                array = np.asarray(actuated, dtype=float)
-            except (TypeError, ValueError) as exc:
-                raise InputError(
-                    f"{name} must be {n} numbers (values of {list(self.actuated_joints)}) "
-                    f"[rad or m], got {actuated!r}",
-                    argument=name,
-                    value=actuated,
-                ) from exc
+            array = float_array(
+                actuated,
+                name,
+                f"{name} must be {n} numbers (values of {list(self.actuated_joints)}) "
+                f"[rad or m], got {actuated!r}",
+            )
             if array.shape != (n,):
                 raise InputError(
                     f"{name} must have shape ({n},) (values of {list(self.actuated_joints)}) "
@@ -579,22 +577,13 @@ class ClosedLoop:
                     argument=name,
                     value=actuated,
                 )
-        if not math.isfinite(float(array.dot(array))) and not np.all(np.isfinite(array)):
-            raise InputError(
-                f"{name} must be finite, got {array.tolist()}", argument=name, value=actuated
-            )
+        if not math.isfinite(float(array.dot(array))):  # cheap test first: a NaN spreads
+            require_finite(array, name, actuated)
         return array
 
     def _check_q(self, q: Any, name: str = "q") -> FloatArray:
         nq = self.model.nq
-        try:
-            array = np.array(q, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(
-                f"{name} must be a configuration of {nq} numbers, got {q!r}",
-                argument=name,
-                value=q,
-            ) from exc
+        array = float_array(q, name, f"{name} must be a configuration of {nq} numbers, got {q!r}")
         if array.shape != (nq,):
             raise InputError(
                 f"{name} must have shape ({nq},) (model {self.model.name!r}), "
@@ -602,8 +591,7 @@ class ClosedLoop:
                 argument=name,
                 value=q,
             )
-        if not np.all(np.isfinite(array)):
-            raise InputError(f"{name} must be finite, got NaN or inf", argument=name, value=q)
+        require_finite(array, name, q)
         return array
 
     def _start(self, start: Any, theta: FloatArray) -> tuple[FloatArray, bool]:
@@ -979,14 +967,9 @@ class ClosedLoop:
         if isinstance(start, FrameTargetResult):
             start = start.projection
         _check_solver_options(tol, FOLLOW_MAX_ITERATIONS, damping)
-        if not isinstance(max_halvings, (int, np.integer)) or max_halvings < 0:
-            raise InputError(
-                f"max_halvings must be an integer >= 0, got {max_halvings!r}",
-                argument="max_halvings",
-                value=max_halvings,
-            )
+        halvings = check_count(max_halvings, "max_halvings", 0)
         first = self.project(points[0], start, tol=tol, damping=damping)
-        return self._follow(points, first, tol, int(max_halvings), damping)
+        return self._follow(points, first, tol, halvings, damping)
 
     def _check_path(self, path: Any) -> FloatArray:
         n = self.n_actuated
@@ -1572,16 +1555,7 @@ def _check_solver_options(tol: Any, max_iterations: Any, damping: Any) -> None:
         raise InputError(
             f"tol must be a number > 0 [m, rad], got {tol!r}", argument="tol", value=tol
         )
-    if (
-        not isinstance(max_iterations, (int, np.integer))
-        or isinstance(max_iterations, bool)
-        or max_iterations < 0
-    ):
-        raise InputError(
-            f"max_iterations must be an integer >= 0, got {max_iterations!r}",
-            argument="max_iterations",
-            value=max_iterations,
-        )
+    check_count(max_iterations, "max_iterations", 0)
     if not isinstance(damping, (int, float, np.floating)) or not (0.0 <= float(damping) < math.inf):
         raise InputError(
             f"damping must be a finite number >= 0, got {damping!r}",
@@ -1610,16 +1584,12 @@ def _frame_target(target: Any) -> tuple[str, Any]:
     """('placement', SE3) | ('orientation', R (3, 3)) | ('position', p (3,))."""
     if isinstance(target, pin.SE3):
         return "placement", pin.SE3(target)
-    try:
-        array = np.array(target, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(
-            f"target must be a pin.SE3, a 4x4 or 3x3 matrix or a point (3,), got {target!r}",
-            argument="target",
-            value=target,
-        ) from exc
-    if not np.all(np.isfinite(array)):
-        raise InputError("target must be finite, got NaN or inf", argument="target", value=target)
+    array = float_array(
+        target,
+        "target",
+        f"target must be a pin.SE3, a 4x4 or 3x3 matrix or a point (3,), got {target!r}",
+    )
+    require_finite(array, "target", target)
     if array.shape == (3,):
         return "position", array
     if array.shape == (4, 4):

@@ -96,6 +96,7 @@ import pinocchio as pin
 
 from .closure import CLOSED_TOL, ClosedLoop
 from .errors import ConvergenceError, FileFormatError, InputError, SingularityError
+from .kinematics._common import check_count, float_array, require_finite
 from .model.robot import JOINT_NAMES, SPMRobot, build_robot
 
 __all__ = [
@@ -169,12 +170,7 @@ _ZERO3 = (0.0, 0.0, 0.0)
 # ------------------------------------------------------------------------- checks
 def _vector(value: Any, size: int, name: str, unit: str) -> FloatArray:
     """A finite float vector of shape (size,) (a scalar broadcasts), or InputError."""
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(
-            f"{name} must be {size} numbers {unit}, got {value!r}", argument=name, value=value
-        ) from exc
+    array = float_array(value, name, f"{name} must be {size} numbers {unit}, got {value!r}")
     if array.ndim == 0:
         array = np.full(size, float(array))
     if array.shape != (size,):
@@ -183,23 +179,15 @@ def _vector(value: Any, size: int, name: str, unit: str) -> FloatArray:
             argument=name,
             value=value,
         )
-    if not np.all(np.isfinite(array)):
-        raise InputError(
-            f"{name} must be finite {unit}, got {array.tolist()}", argument=name, value=value
-        )
+    require_finite(array, name, value, unit)
     return array
 
 
 def _array3(value: Any, name: str, unit: str) -> FloatArray:
     """A finite float array of shape (3,) or (N, 3), or InputError (no broadcasting)."""
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(
-            f"{name} must be numbers of shape (3,) or (N, 3) {unit}, got {value!r}",
-            argument=name,
-            value=value,
-        ) from exc
+    array = float_array(
+        value, name, f"{name} must be numbers of shape (3,) or (N, 3) {unit}, got {value!r}"
+    )
     if array.ndim not in (1, 2) or array.shape[-1] != 3 or array.shape[0] == 0:
         raise InputError(
             f"{name} must have shape (3,) or (N, 3) {unit} (one value per input "
@@ -207,13 +195,7 @@ def _array3(value: Any, name: str, unit: str) -> FloatArray:
             argument=name,
             value=value,
         )
-    if not np.all(np.isfinite(array)):
-        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(array))[0])
-        raise InputError(
-            f"{name} must be finite {unit}, got {array[bad]} at index {bad}",
-            argument=name,
-            value=value,
-        )
+    require_finite(array, name, value, unit)
     return array
 
 
@@ -1150,22 +1132,14 @@ class ClosedLoopDynamics:
 
     def _state(self, state: Any) -> FloatArray:
         """A closed configuration (9,) from theta (3,) or q (9,)."""
-        try:
-            array = np.array(state, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(
-                f"state must be input angles theta (3,) [rad] or a closed configuration "
-                f"q (9,), got {state!r}",
-                argument="state",
-                value=state,
-            ) from exc
+        array = float_array(
+            state,
+            "state",
+            f"state must be input angles theta (3,) [rad] or a closed configuration "
+            f"q (9,), got {state!r}",
+        )
         if array.shape == (3,):
-            if not np.all(np.isfinite(array)):
-                raise InputError(
-                    f"theta must be finite [rad], got {array.tolist()}",
-                    argument="theta",
-                    value=state,
-                )
+            require_finite(array, "theta", state, "[rad]")
             q: FloatArray = self.robot.configuration(array)
             return q
         if array.shape != (self.model.nq,):
@@ -1175,8 +1149,7 @@ class ClosedLoopDynamics:
                 argument="state",
                 value=state,
             )
-        if not np.all(np.isfinite(array)):
-            raise InputError("q must be finite, got NaN or inf", argument="q", value=state)
+        require_finite(array, "q", state)
         residual = math.sqrt(self._kinematics(array))
         if residual > CLOSED_TOL:
             raise InputError(
@@ -2173,16 +2146,7 @@ class Simulator:
             SingularityError: the motion reached a parallel (type II) singularity.
         """
         length = _positive(duration, "duration", "[s]")
-        if (
-            not isinstance(record_every, (int, np.integer))
-            or isinstance(record_every, bool)
-            or record_every < 1
-        ):
-            raise InputError(
-                f"record_every must be an integer >= 1, got {record_every!r}",
-                argument="record_every",
-                value=record_every,
-            )
+        check_count(record_every, "record_every", 1)
         steps = max(1, round(length / self.dt))
         call: Controller | None = None
         constant = np.zeros(3)
@@ -2420,13 +2384,8 @@ def simulate_mujoco(
     dyn = _dynamics(dynamics)
     length = _positive(duration, "duration", "[s]")
     period = _positive(dt, "dt", "[s]")
-    if not isinstance(substeps, int) or isinstance(substeps, bool) or substeps < 1:
-        raise InputError(f"substeps must be an integer >= 1, got {substeps!r}", argument="substeps")
-    if not isinstance(record_every, int) or isinstance(record_every, bool) or record_every < 1:
-        raise InputError(
-            f"record_every must be an integer >= 1, got {record_every!r}",
-            argument="record_every",
-        )
+    check_count(substeps, "substeps", 1)
+    check_count(record_every, "record_every", 1)
     if integrator not in _MUJOCO_INTEGRATORS:
         raise InputError(
             f"integrator must be one of {list(_MUJOCO_INTEGRATORS)}, got {integrator!r}",

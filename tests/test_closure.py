@@ -721,3 +721,23 @@ def test_projection_result_is_a_warm_start_for_another_loop_only_if_shapes_fit(
     assert isinstance(crank, ProjectionResult)
     with pytest.raises(spm.InputError, match="shape"):
         loop.project([0.1, 0.2, 0.3], crank)
+
+
+def test_lazy_exports_match_the_submodules() -> None:
+    """spm_pin's lazy table names only what its module exports, and all of spm_pin.__all__."""
+    import importlib
+
+    for name, module in spm._LAZY.items():
+        assert name in importlib.import_module(module, "spm_pin").__all__, (name, module)
+    eager = {name for name in spm.__all__ if name not in spm._LAZY}
+    for name in eager:
+        assert name in vars(spm), name
+    assert set(spm._LAZY) <= set(spm.__all__)
+
+
+def test_bad_counts_and_non_finite_values_name_the_argument(loop: ClosedLoop) -> None:
+    with pytest.raises(spm.InputError, match="max_halvings must be an integer >= 0"):
+        loop.follow([[0.0, 0.0, 0.0]], max_halvings=True)
+    with pytest.raises(spm.InputError, match=r"must be finite, got nan at index \(1,\)") as info:
+        loop.project([0.1, math.nan, 0.2])
+    assert info.value.argument == "actuated"

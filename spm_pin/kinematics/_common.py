@@ -28,6 +28,35 @@ def check_design(design: SPMDesign | None) -> SPMDesign:
     return design
 
 
+def float_array(value: object, name: str, message: str) -> FloatArray:
+    """``value`` as a new float array, or InputError(``message``) if it is not numbers."""
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(message, argument=name, value=value) from exc
+
+
+def require_finite(array: FloatArray, name: str, value: object, unit: str = "") -> None:
+    """InputError naming the first NaN or inf entry of ``array`` (given as ``value``)."""
+    finite = np.isfinite(array)
+    if not np.all(finite):
+        bad = tuple(int(i) for i in np.argwhere(~finite)[0])
+        raise InputError(
+            f"{name} must be finite{' ' + unit if unit else ''}, got {array[bad]} at index {bad}",
+            argument=name,
+            value=value,
+        )
+
+
+def check_count(value: object, name: str, minimum: int) -> int:
+    """An integer (not bool) >= ``minimum``, or InputError."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < minimum:
+        raise InputError(
+            f"{name} must be an integer >= {minimum}, got {value!r}", argument=name, value=value
+        )
+    return int(value)
+
+
 def as_theta(theta: npt.ArrayLike, name: str = "theta") -> FloatArray:
     """Input angles as a float array of shape (..., 3), finite, or InputError."""
     try:
@@ -44,13 +73,7 @@ def as_theta(theta: npt.ArrayLike, name: str = "theta") -> FloatArray:
             argument=name,
             value=theta,
         )
-    if not np.all(np.isfinite(array)):
-        bad = np.argwhere(~np.isfinite(array))[0]
-        raise InputError(
-            f"{name} must be finite, got {array[tuple(bad)]} at index {tuple(int(i) for i in bad)}",
-            argument=name,
-            value=theta,
-        )
+    require_finite(array, name, theta)
     return array
 
 
