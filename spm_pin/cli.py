@@ -136,6 +136,12 @@ def _design(args: argparse.Namespace) -> SPMDesign:
     return SPMDesign.preset(getattr(args, "preset", None) or "prototype")
 
 
+def _add_angle_arguments(parser: argparse.ArgumentParser) -> None:
+    """The positionals T1 T2 T3: input angles [deg]."""
+    for i in (1, 2, 3):
+        parser.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+
+
 def _add_design_option(parser: argparse._ActionsContainer) -> None:
     parser.add_argument(
         "--design",
@@ -168,6 +174,23 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, to_required: bool) -
 
 def _add_json_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+
+
+def _add_kind_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--kind",
+        choices=["quaternion", "axes"],
+        default="quaternion",
+        help="what the sensor measures (default: quaternion)",
+    )
+
+
+def _add_noise_option(parser: argparse.ArgumentParser, text: str) -> None:
+    parser.add_argument("--noise-deg", type=_number, default=0.5, metavar="D", help=text)
+
+
+def _add_margin_option(parser: argparse.ArgumentParser, text: str) -> None:
+    parser.add_argument("--margin-mm", type=_number, default=0.0, metavar="MM", help=text)
 
 
 # ----------------------------------------------------------------------- JSON/text
@@ -829,13 +852,7 @@ def _add_calibration_parsers(commands: Any) -> None:
         choices=["soft_l1", "huber", "cauchy", "arctan", "linear"],
         help="robust loss (default: soft_l1)",
     )
-    calibrate.add_argument(
-        "--noise-deg",
-        type=_number,
-        default=0.5,
-        metavar="D",
-        help="expected sensor noise per axis [deg] (default: 0.5)",
-    )
+    _add_noise_option(calibrate, "expected sensor noise per axis [deg] (default: 0.5)")
     calibrate.add_argument(
         "--confidence",
         type=_number,
@@ -885,12 +902,7 @@ def _add_calibration_parsers(commands: Any) -> None:
     plan.add_argument("count", type=int, metavar="N", help="number of poses")
     plan.add_argument("--out", metavar="FILE", help="write the pose list (CSV)")
     plan.add_argument("--parameters", metavar="LIST", help=f"comma-separated {names}")
-    plan.add_argument(
-        "--kind",
-        choices=["quaternion", "axes"],
-        default="quaternion",
-        help="what the sensor measures (default: quaternion)",
-    )
+    _add_kind_option(plan)
     plan.add_argument("--seed", type=int, default=0, help="seed of the candidates (default 0)")
     plan.add_argument(
         "--candidates", type=int, default=2000, metavar="C", help="candidates (default 2000)"
@@ -916,12 +928,8 @@ def _add_calibration_parsers(commands: Any) -> None:
         metavar="G",
         help="smallest gap between adjacent proximal links [deg] (default 45)",
     )
-    plan.add_argument(
-        "--noise-deg",
-        type=_number,
-        default=0.5,
-        metavar="D",
-        help="sensor noise per axis [deg] for the predicted deviations (default 0.5)",
+    _add_noise_option(
+        plan, "sensor noise per axis [deg] for the predicted deviations (default 0.5)"
     )
     _add_json_option(plan)
     _add_design_option(plan)
@@ -947,19 +955,8 @@ def _add_calibration_parsers(commands: Any) -> None:
         default="ticks",
         help="unit of the servo columns (default: ticks, 4096 per turn)",
     )
-    synth.add_argument(
-        "--kind",
-        choices=["quaternion", "axes"],
-        default="quaternion",
-        help="what the sensor measures (default: quaternion)",
-    )
-    synth.add_argument(
-        "--noise-deg",
-        type=_number,
-        default=0.5,
-        metavar="D",
-        help="sensor noise per axis [deg] (default 0.5)",
-    )
+    _add_kind_option(synth)
+    _add_noise_option(synth, "sensor noise per axis [deg] (default 0.5)")
     synth.add_argument(
         "--outliers",
         type=_number,
@@ -1006,7 +1003,6 @@ def _run_torques(args: argparse.Namespace) -> int:
     result = inverse_dynamics(dynamics, motion)
     servo = XM540_W150
     check = check_servo(result.torque, result.theta_dot, servo, time=motion.time)
-    worst_t, worst_j = check.worst_sample, check.worst_joint
     record: Record = {
         "design": design.name,
         "servo": {
@@ -1027,12 +1023,7 @@ def _run_torques(args: argparse.Namespace) -> int:
         "peak_power_w": np.abs(result.power).max(axis=0),
         "max_utilisation": check.max_utilisation,
         "within_limits": check.within_limits,
-        "worst": {
-            "joint": f"u_{worst_j + 1}",
-            "time_s": float(motion.time[worst_t]),
-            "torque_nm": float(result.torque[worst_t, worst_j]),
-            "speed_rpm": float(result.theta_dot[worst_t, worst_j]) * 60.0 / (2.0 * math.pi),
-        },
+        "worst": _worst_sample(result, motion, check),
         "verdict": check.message,
         "plot": None,
     }
@@ -1043,6 +1034,17 @@ def _run_torques(args: argparse.Namespace) -> int:
             raise _UsageError(f"--plot needs matplotlib: {exc}") from exc
     _emit(record, args.json)
     return 0
+
+
+def _worst_sample(result: Any, motion: Any, check: Any) -> Record:
+    """The sample and joint nearest to the servo's limits (a ``check_servo`` result)."""
+    t, j = check.worst_sample, check.worst_joint
+    return {
+        "joint": f"u_{j + 1}",
+        "time_s": float(motion.time[t]),
+        "torque_nm": float(result.torque[t, j]),
+        "speed_rpm": float(result.theta_dot[t, j]) * 60.0 / (2.0 * math.pi),
+    }
 
 
 def _add_torques_parser(commands: Any) -> None:
@@ -1101,19 +1103,13 @@ def collide_record(theta_deg: Sequence[float], design: SPMDesign, margin_m: floa
     robot = build_robot(design)
     report = check_input(np.radians(np.asarray(theta_deg, dtype=float)), robot, margin=margin_m)
     nearest = min(report.distances, key=lambda pair: report.distances[pair])
-    if report.mode is None:
-        checked = "proximal links only (no real assembly mode: the other links have no pose)"
-    elif report.home:
-        checked = "every link pair (home assembly mode)"
-    else:
-        checked = f"every link pair (assembly mode {report.mode}; the home mode does not exist)"
     return {
         "design": design.name,
         "theta_deg": list(theta_deg),
         "reachable": report.reachable,
         "mode": report.mode,
         "home": report.home,
-        "checked": checked,
+        "checked": _checked_links(report),
         "collision": report.collision,
         "pairs": [list(pair) for pair in report.pairs],
         "min_distance_m": report.min_distance,
@@ -1125,6 +1121,15 @@ def collide_record(theta_deg: Sequence[float], design: SPMDesign, margin_m: floa
             for pair, distance in report.distances.items()
         ],
     }
+
+
+def _checked_links(report: Any) -> str:
+    """Which links a :func:`~spm_pin.collision.check_input` report checked, in words."""
+    if report.mode is None:
+        return "proximal links only (no real assembly mode: the other links have no pose)"
+    if report.home:
+        return "every link pair (home assembly mode)"
+    return f"every link pair (assembly mode {report.mode}; the home mode does not exist)"
 
 
 def _run_collide(args: argparse.Namespace) -> int:
@@ -1185,14 +1190,10 @@ def _add_collision_parsers(commands: Any) -> None:
         "exist, the real assembly mode nearest to it (named in the output); with no real "
         "assembly at all, the proximal links, which theta alone places.",
     )
-    for i in (1, 2, 3):
-        collide.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
-    collide.add_argument(
-        "--margin-mm",
-        type=_number,
-        default=0.0,
-        metavar="MM",
-        help="safety margin [mm]: links nearer than this count as colliding (default 0; "
+    _add_angle_arguments(collide)
+    _add_margin_option(
+        collide,
+        "safety margin [mm]: links nearer than this count as colliding (default 0; "
         "the prototype's drive tubes are 1 mm apart everywhere)",
     )
     _add_json_option(collide)
@@ -1225,13 +1226,7 @@ def _add_collision_parsers(commands: Any) -> None:
         metavar=("LOW", "HIGH"),
         help="range of every gap [deg] (default 0 360)",
     )
-    workspace.add_argument(
-        "--margin-mm",
-        type=_number,
-        default=0.0,
-        metavar="MM",
-        help="safety margin of the safe set [mm] (default 0)",
-    )
+    _add_margin_option(workspace, "safety margin of the safe set [mm] (default 0)")
     workspace.add_argument(
         "--min-dexterity",
         type=_number,
@@ -1271,8 +1266,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Platform orientation at input angles T1 T2 T3 [deg] (home assembly "
         "mode), with Jacobian, singularity and dexterity data.",
     )
-    for i in (1, 2, 3):
-        fk.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+    _add_angle_arguments(fk)
     fk.add_argument("--all", action="store_true", help="every real assembly mode")
     fk.add_argument(
         "--solver",
@@ -1387,8 +1381,7 @@ def build_parser() -> argparse.ArgumentParser:
         "links in black: in a live viewer (open the printed url; Ctrl-C stops it) or, with "
         "--html, in a self-contained HTML file. Needs the viz extra.",
     )
-    for i in (1, 2, 3):
-        show.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+    _add_angle_arguments(show)
     show.add_argument("--html", metavar="FILE", help="write the scene to FILE instead of serving")
     show.add_argument(
         "--mode",

@@ -55,7 +55,18 @@ import numpy as np
 import numpy.typing as npt
 
 from ._version import __version__
-from .cli import _assembly_label, _dumps, _orientation, _plain, _render
+from .cli import (
+    FloatArray,
+    Record,
+    _assembly_label,
+    _checked_links,
+    _dumps,
+    _orientation,
+    _plain,
+    _render,
+    _worst_sample,
+    fk_all_record,
+)
 from .design import SPMDesign
 from .errors import InputError
 from .kinematics import (
@@ -95,9 +106,6 @@ __all__ = [
     "mujoco_platform_axes",
     "run_demo",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-Record = dict[str, Any]
 
 # ------------------------------------------------------------------------ settings
 #: The published study's demonstration input [deg].
@@ -799,26 +807,15 @@ def _vector(values: Any) -> str:
 
 
 def _demo_assembly_modes(ctx: DemoContext) -> DemoSection:
-    modes = forward_kinematics_all(ctx.theta, ctx.design)
-    count = int(modes.count)
-    labels = modes.labels
-    data = {
-        "theta_deg": ctx.theta_deg,
-        "count": count,
-        "modes": [
-            {
-                "label": labels[k],
-                "home": modes.home[k],
-                "residual": modes.residual[k],
-                "v": modes.v[k],
-            }
-            for k in range(count)
-        ],
-    }
+    modes = [
+        {key: mode[key] for key in ("label", "home", "residual", "v")}
+        for mode in fk_all_record(ctx.theta_deg, ctx.design)["modes"]
+    ]
+    data = {"theta_deg": ctx.theta_deg, "count": len(modes), "modes": modes}
     text = {
-        "count": count,
-        "labels": [str(labels[k]) + (" (home)" if modes.home[k] else "") for k in range(count)],
-        "max_residual": float(np.max(modes.residual[:count])) if count else None,
+        "count": len(modes),
+        "labels": [str(m["label"]) + (" (home)" if m["home"] else "") for m in modes],
+        "max_residual": max((float(m["residual"]) for m in modes), default=None),
     }
     return DemoSection("assembly_modes", "Every real assembly mode at that input", data, text)
 
@@ -969,12 +966,6 @@ def _demo_colliding_input(ctx: DemoContext) -> DemoSection:
     report = check_input(theta, ctx.robot)
     modes = forward_kinematics_all(theta, ctx.design)
     count = int(modes.count)
-    if report.mode is None:
-        checked = "proximal links only (no real assembly mode: the other links have no pose)"
-    elif report.home:
-        checked = "every link pair (home assembly mode)"
-    else:
-        checked = f"every link pair (assembly mode {report.mode}; the home mode does not exist)"
     links = sorted({name for pair in report.pairs for name in pair})
     gaps = gaps_from_theta(theta, ctx.design) if ctx.design.is_coaxial else None
     data: Record = {
@@ -984,7 +975,7 @@ def _demo_colliding_input(ctx: DemoContext) -> DemoSection:
         "count": count,
         "labels": modes.labels[:count],
         "mode": report.mode,
-        "checked": checked,
+        "checked": _checked_links(report),
         "collision": report.collision,
         "pairs": [list(pair) for pair in report.pairs],
         "links": links,
@@ -1126,8 +1117,6 @@ def _demo_torques(ctx: DemoContext) -> DemoSection:
     result = inverse_dynamics(dynamics, motion)
     servo = XM540_W150
     check = check_servo(result.torque, result.theta_dot, servo, time=motion.time)
-    worst_t, worst_j = check.worst_sample, check.worst_joint
-    rpm = 60.0 / (2.0 * math.pi)
     data: Record = {
         "servo": {
             "name": servo.name,
@@ -1142,15 +1131,10 @@ def _demo_torques(ctx: DemoContext) -> DemoSection:
         "gravity_m_s2": dynamics.gravity,
         "peak_torque_nm": check.peak_torque,
         "rms_torque_nm": check.rms_torque,
-        "peak_speed_rpm": check.peak_speed * rpm,
+        "peak_speed_rpm": check.peak_speed * (60.0 / (2.0 * math.pi)),
         "max_utilisation": check.max_utilisation,
         "within_limits": check.within_limits,
-        "worst": {
-            "joint": f"u_{worst_j + 1}",
-            "time_s": float(motion.time[worst_t]),
-            "torque_nm": float(result.torque[worst_t, worst_j]),
-            "speed_rpm": float(result.theta_dot[worst_t, worst_j]) * rpm,
-        },
+        "worst": _worst_sample(result, motion, check),
         "verdict": check.message,
         "plot": None,
     }

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+# The spm command's helpers: spm_pin.cli imports this module only inside build_parser.
+from ..cli import _add_angle_arguments, _add_json_option, _design, _emit, _UsageError
 from ..errors import InputError
 
 __all__ = ["add_servo_parser"]
@@ -44,18 +46,6 @@ def _positive(text: str) -> float:
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
     return value
-
-
-def _number(text: str) -> float:
-    from ..cli import _number as number
-
-    return number(text)
-
-
-def _emit(record: dict[str, Any], as_json: bool) -> None:
-    from ..cli import _emit as emit
-
-    emit(record, as_json)
 
 
 # -------------------------------------------------------------------------- emulate
@@ -111,11 +101,9 @@ def _config(args: argparse.Namespace) -> Any:
 
 
 def _robot(args: argparse.Namespace) -> Any:
-    from ..design import SPMDesign
     from ..model.robot import build_robot
 
-    design = SPMDesign.load(args.design) if args.design is not None else SPMDesign.prototype()
-    return build_robot(design)
+    return build_robot(_design(args))
 
 
 def _bus(config: Any) -> Any:
@@ -292,7 +280,7 @@ def _add_bus_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--design", metavar="FILE", help="design TOML file (default: the prototype)"
     )
-    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    _add_json_option(parser)
 
 
 def add_servo_parser(commands: Any) -> None:
@@ -357,8 +345,7 @@ def add_servo_parser(commands: Any) -> None:
         "(reachable, singularity margin, no collision, joint/speed/acceleration limits). "
         "Torque goes off at the end. Exit status 1 if the goal was not reached.",
     )
-    for i in (1, 2, 3):
-        move.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+    _add_angle_arguments(move)
     move.add_argument(
         "--speed", type=_positive, metavar="DEG_S", help="joint speed [deg/s] (default: max)"
     )
@@ -388,6 +375,4 @@ def add_servo_parser(commands: Any) -> None:
 
 
 def _missing_subcommand(args: argparse.Namespace) -> int:
-    from ..cli import _UsageError
-
     raise _UsageError("spm servo needs a subcommand: emulate, status, move or follow")
