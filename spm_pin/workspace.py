@@ -719,14 +719,24 @@ def workspace_map(
         )
     _check_number("settings.margin", settings.margin, 0.0, 0.1)
     _check_number("settings.min_dexterity", settings.min_dexterity, 0.0, 1.0)
-    ladder = tuple(float(v) for v in settings.ladder)
-    if not ladder or ladder[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(ladder)):
+    try:
+        ladder = tuple(float(v) for v in settings.ladder)
+    except (TypeError, ValueError):
+        ladder = ()
+    if (
+        not ladder
+        or ladder[0] != 0.0
+        or not all(math.isfinite(v) for v in ladder)
+        or any(b <= a for a, b in itertools.pairwise(ladder))
+    ):
         raise InputError(
             "settings.ladder must be increasing margins [m] starting at 0, got "
             f"{settings.ladder!r}",
             argument="settings.ladder",
             value=settings.ladder,
         )
+    # The workers and the map get the ladder as floats (cached plans key on floats).
+    settings = dataclasses.replace(settings, ladder=ladder)
     try:
         low, high = (float(v) for v in gap_range_deg)
     except (TypeError, ValueError) as exc:
@@ -802,7 +812,7 @@ def workspace_map(
     ordered = {name: fields[name] for name in MAP_FIELDS}
     return WorkspaceMap(
         design=design,
-        settings=dataclasses.replace(settings, ladder=ladder),
+        settings=settings,
         theta=theta,
         fields=ordered,
         grid=grid,

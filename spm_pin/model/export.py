@@ -34,6 +34,7 @@ import trimesh
 
 from ..design import SPMDesign
 from .geometry import LINK_NAMES, LinkInertia, link_inertias, link_meshes
+from .robot import END_BODIES, JOINT_NAMES  # re-exported: the robot's names and q order
 
 __all__ = [
     "END_BODIES",
@@ -52,10 +53,6 @@ FloatArray = npt.NDArray[np.float64]
 URDF_NAME = "spm.urdf"
 MJCF_NAME = "spm.xml"
 MESH_DIR = "meshes"
-#: The bodies that end legs 1, 2, 3 (the platform and its two welded copies).
-END_BODIES = ("platform", "platform_leg2", "platform_leg3")
-#: Joint names in depth-first tree order (Pinocchio's q order for both files).
-JOINT_NAMES = tuple(f"{letter}_{leg}" for leg in (1, 2, 3) for letter in "uwv")
 
 #: Position limits written to the URDF [rad] (URDF revolute joints need limits; a
 #: "continuous" joint would become a two-coordinate joint in Pinocchio). The coaxial

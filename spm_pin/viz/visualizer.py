@@ -418,8 +418,7 @@ class Visualizer:
     def _collisions(self, q: FloatArray) -> list[LinkPair]:
         if not self.check_collisions:
             return []
-        pairs = self.robot.collisions(q, margin=self.collision_margin)
-        return [(str(a), str(b)) for a, b in pairs]
+        return self.robot.collisions(q, margin=self.collision_margin)
 
     def _show_colliding(self, links: frozenset[str]) -> None:
         for name in LINK_NAMES:
@@ -433,7 +432,7 @@ class Visualizer:
             self.scene.set_transform(path, matrix)
         pairs = self._collisions(q)
         self._show_colliding(frozenset(name for pair in pairs for name in pair))
-        self._q = q
+        self._q = q.copy()  # q may be the caller's array (or a row of an animation's)
         return pairs
 
     def display(self, x: npt.ArrayLike, *, mode: str = "home") -> list[LinkPair]:
