@@ -98,7 +98,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from .design import SPMDesign
+from .design import SPMDesign, _read_text
 from .errors import ConvergenceError, DesignError, FileFormatError, InputError
 from .kinematics import forward_kinematics, inverse_kinematics, jacobian
 from .kinematics._common import as_rotation, check_design, cross, rotate_about
@@ -738,14 +738,8 @@ def parse_readings(
 
 def load_readings(path: str | Path, *, joints: JointConvention | None = None) -> Readings:
     """Read a readings CSV file (see :func:`parse_readings`, also for ``joints``)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise FileFormatError(f"cannot read readings file: {exc.strerror}", path=str(path)) from exc
-    except UnicodeDecodeError as exc:
-        raise FileFormatError("readings file is not UTF-8 text", path=str(path)) from exc
-    return parse_readings(text, source=str(path), joints=joints)
+    text, source = _read_text(path, "readings file")
+    return parse_readings(text, source=source, joints=joints)
 
 
 def _number(field: str, column: str, line: int, source: str | None) -> float:
@@ -2503,10 +2497,7 @@ def load_poses(path: str | Path) -> FloatArray:
     Needs the columns ``theta1_deg..theta3_deg`` (or ``_rad``); others are ignored.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise FileFormatError(f"cannot read pose list: {exc.strerror}", path=str(path)) from exc
+    text, _ = _read_text(path, "pose list")
     header: list[str] | None = None
     rows: list[list[float]] = []
     cols: list[int] = []

@@ -141,6 +141,30 @@ def _unit(vector: Sequence[float], name: str) -> tuple[float, float, float]:
     return (float(unit[0]), float(unit[1]), float(unit[2]))
 
 
+def _read_text(path: str | Path, what: str) -> tuple[str, str]:
+    """The UTF-8 text of a file and its name; FileFormatError names ``what`` on failure.
+
+    Shared by every loader (designs, servo configurations, calibration files).
+    """
+    file = Path(path)
+    try:
+        text = file.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise FileFormatError(f"cannot read {what}: {exc.strerror}", path=str(file)) from exc
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"{what} is not UTF-8 text", path=str(file)) from exc
+    return text, str(file)
+
+
+def _parse_toml(text: str, source: str | None) -> dict[str, Any]:
+    """TOML text as a dict, or FileFormatError naming ``source``."""
+    try:
+        data: dict[str, Any] = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise FileFormatError(f"not valid TOML: {exc}", path=source) from exc
+    return data
+
+
 def _round_deg(angle: float) -> float:
     """An angle [rad] in degrees rounded to 12 decimals: what design files store, so
     that radians(degrees(x)) round-trips exactly for designs given in degrees."""
@@ -484,25 +508,13 @@ class SPMDesign:
     @classmethod
     def from_toml(cls, text: str, *, source: str | None = None) -> SPMDesign:
         """Parse TOML text (see :meth:`to_toml`)."""
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise FileFormatError(f"not valid TOML: {exc}", path=source) from exc
-        return cls.from_dict(data, source=source)
+        return cls.from_dict(_parse_toml(text, source), source=source)
 
     @classmethod
     def load(cls, path: str | Path) -> SPMDesign:
         """Read a design from a TOML file written by :meth:`save` (or by hand)."""
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise FileFormatError(
-                f"cannot read design file: {exc.strerror}", path=str(path)
-            ) from exc
-        except UnicodeDecodeError as exc:
-            raise FileFormatError("design file is not UTF-8 text", path=str(path)) from exc
-        return cls.from_toml(text, source=str(path))
+        text, source = _read_text(path, "design file")
+        return cls.from_toml(text, source=source)
 
     def summary(self) -> str:
         """One line describing the kinematic parameters."""

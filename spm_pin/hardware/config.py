@@ -41,21 +41,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
+from ..design import _parse_toml, _read_text
 from ..errors import FileFormatError, InputError
 from .control_table import HardwareErrorFlag
 from .driver import ServoSettings
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 __all__ = [
     "HardwareConfig",
@@ -72,6 +67,18 @@ _DEFAULT_THETA_LIMIT = 200 * 2 * math.pi
 
 def _real(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _check_count(value: Any, name: str, low: int, high: int) -> None:
+    """InputError unless ``value`` is an int (not a bool) in low..high."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputError(
+            f"{name} must be an integer >= {low}, got {value!r}", argument=name, value=value
+        )
+    if not low <= value <= high:
+        raise InputError(
+            f"{name} must lie in {low}..{high}, got {value}", argument=name, value=value
+        )
 
 
 def _flags(names: Sequence[str], key: str, source: str | None) -> HardwareErrorFlag:
@@ -226,18 +233,7 @@ class RebootPolicy:
     reboot_on: HardwareErrorFlag = HardwareErrorFlag.OVERLOAD | HardwareErrorFlag.ELECTRICAL_SHOCK
 
     def __post_init__(self) -> None:
-        if isinstance(self.max_reboots, bool) or not isinstance(self.max_reboots, int):
-            raise InputError(
-                f"max_reboots must be an integer >= 0, got {self.max_reboots!r}",
-                argument="max_reboots",
-                value=self.max_reboots,
-            )
-        if not 0 <= self.max_reboots <= 10:
-            raise InputError(
-                f"max_reboots must lie in 0..10, got {self.max_reboots}",
-                argument="max_reboots",
-                value=self.max_reboots,
-            )
+        _check_count(self.max_reboots, "max_reboots", 0, 10)
         never = HardwareErrorFlag.OVERHEATING | HardwareErrorFlag.MOTOR_ENCODER
         if self.reboot_on & never:
             raise InputError(
@@ -324,18 +320,7 @@ class HardwareConfig:
                 argument="servo",
                 value=self.servo.profile_acceleration,
             )
-        if isinstance(self.max_failures, bool) or not isinstance(self.max_failures, int):
-            raise InputError(
-                f"max_failures must be an integer >= 1, got {self.max_failures!r}",
-                argument="max_failures",
-                value=self.max_failures,
-            )
-        if not 1 <= self.max_failures <= 100:
-            raise InputError(
-                f"max_failures must lie in 1..100, got {self.max_failures}",
-                argument="max_failures",
-                value=self.max_failures,
-            )
+        _check_count(self.max_failures, "max_failures", 1, 100)
 
     @property
     def ids(self) -> tuple[int, int, int]:
@@ -449,25 +434,13 @@ class HardwareConfig:
     @classmethod
     def from_toml(cls, text: str, *, source: str | None = None) -> HardwareConfig:
         """Parse TOML text (see :meth:`to_toml`)."""
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise FileFormatError(f"not valid TOML: {exc}", path=source) from exc
-        return cls.from_dict(data, source=source)
+        return cls.from_dict(_parse_toml(text, source), source=source)
 
     @classmethod
     def load(cls, path: str | Path) -> HardwareConfig:
         """Read a configuration file written by :meth:`save` (or by hand)."""
-        file = Path(path)
-        try:
-            text = file.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise FileFormatError(
-                f"cannot read servo configuration: {exc.strerror}", path=str(file)
-            ) from exc
-        except UnicodeDecodeError as exc:
-            raise FileFormatError("servo configuration is not UTF-8 text", path=str(file)) from exc
-        return cls.from_toml(text, source=str(file))
+        text, source = _read_text(path, "servo configuration")
+        return cls.from_toml(text, source=source)
 
 
 _TOP_KEYS = {

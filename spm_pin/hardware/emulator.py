@@ -883,20 +883,11 @@ class ServoEmulator:
         if length == 0 or len(records) % (length + 1):
             self._log(packet.servo_id, "SYNC_WRITE", False, "data length error")
             return []
-        writes: list[tuple[int, int, bytes]] = []
-        errors: list[str] = []
-        for start in range(0, len(records), length + 1):
-            servo_id = records[start]
-            data = bytes(records[start + 1 : start + 1 + length])
-            servo = self._find(servos, servo_id)
-            if servo is None:
-                continue
-            error = servo.write(address, data, now)
-            if error:
-                errors.append(f"id {servo_id}: error {error}")
-            else:
-                writes.append((servo_id, address, data))
-        self._log(packet.servo_id, "SYNC_WRITE", True, "; ".join(errors), tuple(writes))
+        requests = [
+            (records[start], address, bytes(records[start + 1 : start + 1 + length]))
+            for start in range(0, len(records), length + 1)
+        ]
+        self._log(packet.servo_id, "SYNC_WRITE", True, *self._write_each(servos, requests, now))
         return []
 
     def _bulk_read(self, packet: Packet, servos: list[EmulatedServo], now: float) -> list[Reply]:
@@ -916,24 +907,34 @@ class ServoEmulator:
 
     def _bulk_write(self, packet: Packet, servos: list[EmulatedServo], now: float) -> list[Reply]:
         params = packet.parameters
-        writes: list[tuple[int, int, bytes]] = []
-        errors: list[str] = []
+        requests: list[tuple[int, int, bytes]] = []
         start = 0
         while start + 5 <= len(params):
             servo_id, address = params[start], _word(params, start + 1)
             length = _word(params, start + 3)
             data = bytes(params[start + 5 : start + 5 + length])
             start += 5 + length
+            if len(data) == length:
+                requests.append((servo_id, address, data))
+        self._log(packet.servo_id, "BULK_WRITE", True, *self._write_each(servos, requests, now))
+        return []
+
+    def _write_each(
+        self, servos: list[EmulatedServo], requests: list[tuple[int, int, bytes]], now: float
+    ) -> tuple[str, tuple[tuple[int, int, bytes], ...]]:
+        """Apply (id, address, data) writes to the servos present: (errors, done) to log."""
+        writes: list[tuple[int, int, bytes]] = []
+        errors: list[str] = []
+        for servo_id, address, data in requests:
             servo = self._find(servos, servo_id)
-            if servo is None or len(data) != length:
+            if servo is None:
                 continue
             error = servo.write(address, data, now)
             if error:
                 errors.append(f"id {servo_id}: error {error}")
             else:
                 writes.append((servo_id, address, data))
-        self._log(packet.servo_id, "BULK_WRITE", True, "; ".join(errors), tuple(writes))
-        return []
+        return "; ".join(errors), tuple(writes)
 
 
 def _word(data: bytes, index: int) -> int:

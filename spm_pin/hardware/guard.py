@@ -191,9 +191,10 @@ class SafetyGuard:
         verdicts: list[Verdict | None] = []
         todo: list[int] = []
         for k, theta in enumerate(thetas):
-            cached = self._cache.get(theta.tobytes())
+            key = theta.tobytes()
+            cached = self._cache.get(key)
             if cached is not None:
-                self._cache.move_to_end(theta.tobytes())
+                self._cache.move_to_end(key)
                 self.stats["cache_hits"] += 1
             else:
                 todo.append(k)

@@ -154,7 +154,8 @@ class JointMap:
         """Fix the turns of joint ``index`` (0..2) only, closest to ``reference`` [rad]."""
         joint = self.joints[index]
         turn = 2.0 * math.pi / joint.gear_ratio
-        base = joint.direction * (pulses - joint.zero_offset) * POSITION_UNIT / joint.gear_ratio
+        reading = [pulses if i == index else 0 for i in range(3)]
+        base = float(self._theta(reading, (0, 0, 0))[index])
         k = round((base - reference) / turn)
         self.turns[index] = int(joint.direction * k)
-        return float(self.to_theta([pulses if i == index else 0 for i in range(3)])[index])
+        return float(self.to_theta(reading)[index])

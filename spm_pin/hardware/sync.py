@@ -25,6 +25,7 @@ Faults are handled so that the servos never receive an unchecked command:
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 import time
@@ -180,8 +181,11 @@ def plan_linear(
     Returns:
         The goals at t = period, 2 period, ..., ending exactly on ``goal``, (n, 3).
     """
-    a0 = np.asarray(start, dtype=float)
-    a1 = np.asarray(goal, dtype=float)
+    try:
+        a0 = np.asarray(start, dtype=float)
+        a1 = np.asarray(goal, dtype=float)
+    except (TypeError, ValueError):  # not numbers: refused by the shape check below
+        a0 = a1 = np.empty(0)
     if a0.shape != (3,) or a1.shape != (3,) or not np.all(np.isfinite(np.r_[a0, a1])):
         raise InputError(
             f"start and goal must be 3 finite angles [rad], got {start!r} and {goal!r}",
@@ -533,7 +537,12 @@ class ServoSync:
             raise HardwareError("call start() first", operation="step")
         target = None
         if goal is not None:
-            target = np.array(goal, dtype=float)
+            try:
+                target = np.array(goal, dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(
+                    f"goal must be 3 joint angles [rad], got {goal!r}", argument="goal", value=goal
+                ) from None
             if target.shape != (3,):
                 raise InputError(
                     f"goal must be 3 joint angles [rad], got shape {target.shape}",
@@ -634,8 +643,9 @@ class ServoSync:
         if self.goal is None or not self.torque:
             raise HardwareError("call start() (torque on) before moving", operation="run")
         period = self.config.period
+        # The guard validates the path's shape and numbers before numpy converts it here.
+        self.guard.check_path(path, period=period, start=self.goal).require()
         goals = np.array(path, dtype=float)
-        self.guard.check_path(goals, period=period, start=self.goal).require()
         states: list[SyncState] = []
         late = 0
         max_lag = 0.0
@@ -755,19 +765,17 @@ class ServoSync:
         if self.goal is None:
             raise HardwareError("call start() first", operation="follow")
         period = self.config.period
-        states: list[SyncState] = []
+        states: collections.deque[SyncState] = collections.deque(maxlen=max(int(keep), 0))
         end = self.clock() + duration
         next_time = self.clock()
         while True:
             result = self.step()
             if result.state is not None:
                 states.append(result.state)
-                if len(states) > keep:
-                    del states[0]
                 if on_state is not None:
                     on_state(result.state)
             if self.clock() >= end:
-                return states
+                return list(states)
             next_time += period
             delay = next_time - self.clock()
             if delay > 0:
