@@ -7,11 +7,13 @@ this directory on ``sys.path``); fixtures are used as usual.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import spm_pin as spm
@@ -60,6 +62,12 @@ DESIGNS: dict[str, Callable[[], spm.SPMDesign]] = {
 }
 DESIGN_NAMES = tuple(DESIGNS)
 COAXIAL_NAMES = ("prototype", "coaxial_50_75_100")
+
+# Hypothesis strategies shared by the property tests.
+#: Seeds of the numpy generators that draw each example's batch.
+seeds = st.integers(min_value=0, max_value=2**32 - 1)
+#: The designs under test, by name (see ``get_design``).
+design_names = st.sampled_from(DESIGN_NAMES)
 
 _CACHE: dict[str, spm.SPMDesign] = {}
 
@@ -144,3 +152,32 @@ def leg_signs(design: spm.SPMDesign, theta: np.ndarray, R: np.ndarray) -> tuple[
     b = np.sum(np.cross(design.u, w) * v, axis=-1)
     A = np.cross(w, v)
     return b, A, np.linalg.det(A)
+
+
+# ------------------------------------------------- no silent skips under CI
+#: Skips for a missing module (pytest.importorskip): fine on a partial local install,
+#: a failure under CI, where `pip install ".[test]"` installs every test dependency.
+_MISSING_MODULE_SKIPS: list[str] = []
+
+
+def _under_ci() -> bool:
+    return os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
+
+
+def _record_missing_module(report: pytest.CollectReport | pytest.TestReport) -> None:
+    if report.skipped and "could not import" in str(report.longrepr):
+        _MISSING_MODULE_SKIPS.append(f"{report.nodeid}: {report.longrepr}")
+
+
+def pytest_collectreport(report: pytest.CollectReport) -> None:
+    _record_missing_module(report)
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    _record_missing_module(report)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    if _under_ci() and _MISSING_MODULE_SKIPS:
+        print("\nunder CI, tests skipped for a missing module:", *_MISSING_MODULE_SKIPS, sep="\n")
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

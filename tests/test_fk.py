@@ -11,6 +11,7 @@ from _brute_force import brute_force_fk
 from conftest import (
     COAXIAL_NAMES,
     DESIGN_NAMES,
+    design_names,
     get_design,
     leg_signs,
     loop_residual,
@@ -19,6 +20,7 @@ from conftest import (
     random_inputs,
     reachable_inputs,
     rot_z,
+    seeds,
 )
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -42,8 +44,6 @@ TOL = {
 }
 
 BATCH = 128
-seeds = st.integers(min_value=0, max_value=2**32 - 1)
-design_names = st.sampled_from(DESIGN_NAMES)
 #: Random inputs per design compared with the brute-force solver.
 BRUTE_FORCE_SAMPLES = 20
 

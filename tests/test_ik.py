@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from conftest import (
-    DESIGN_NAMES,
+    design_names,
     get_design,
     leg_signs,
     loop_residual,
@@ -16,10 +16,10 @@ from conftest import (
     random_rotations,
     reachable_inputs,
     rot_z,
+    seeds,
     wrap,
 )
 from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import spm_pin as spm
 
@@ -38,8 +38,6 @@ TOL = {
 }
 
 BATCH = 96
-seeds = st.integers(min_value=0, max_value=2**32 - 1)
-design_names = st.sampled_from(DESIGN_NAMES)
 
 
 def _theta_tolerance(design: spm.SPMDesign, theta: np.ndarray, R: np.ndarray) -> np.ndarray:

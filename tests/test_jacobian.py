@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from _brute_force import brute_force_fk
 from conftest import (
-    DESIGN_NAMES,
+    design_names,
     get_design,
     leg_signs,
     platform_axes,
@@ -17,9 +17,9 @@ from conftest import (
     random_rotations,
     reachable_inputs,
     rot_z,
+    seeds,
 )
 from hypothesis import given, settings
-from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import spm_pin as spm
@@ -41,8 +41,6 @@ TOL = {
 }
 
 BATCH = 64
-seeds = st.integers(min_value=0, max_value=2**32 - 1)
-design_names = st.sampled_from(DESIGN_NAMES)
 
 
 def _vee(skew: np.ndarray) -> np.ndarray:

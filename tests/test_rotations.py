@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from conftest import seeds
 from hypothesis import given, settings
-from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from spm_pin.rotations import (
@@ -29,7 +29,6 @@ TOL = {
 }
 
 BATCH = 256
-seeds = st.integers(min_value=0, max_value=2**32 - 1)
 
 
 def _scipy_quaternion(rotation: Rotation) -> np.ndarray:

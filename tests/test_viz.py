@@ -642,11 +642,24 @@ def test_server_keeps_answering_after_many_connections() -> None:
             connection = await websocket_connect(url)
             connection.close()
 
+    async def first_message(url: str) -> bytes | str | None:
+        """A new viewer connection: the server replays its scene tree to it."""
+        connection = await websocket_connect(url)
+        try:
+            return await asyncio.wait_for(connection.read_message(), timeout=10.0)
+        finally:
+            connection.close()
+
     with MeshcatServer(timeout=10.0) as server:
         url = f"ws://127.0.0.1:{server.ports[1]}/"
         asyncio.run(connect_many(url, 600))
         for _ in range(3):
             server.send("set_property", "/Axes", umsgpack.packb(_axes_visible(True)))
+        assert server.running
+        # It still serves: a viewer that connects now receives the property just set.
+        message = asyncio.run(first_message(url))
+        assert isinstance(message, bytes)
+        assert umsgpack.unpackb(message) == _axes_visible(True)
 
 
 def _axes_visible(value: bool) -> dict[str, Any]:
