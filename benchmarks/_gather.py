@@ -243,6 +243,14 @@ def figures_kinematics(data: Mapping[str, Any]) -> list[Figure]:
             targets=("fk_home_per_second", "fk_home_speedup_vs_fsolve"),
         ),
         timed(
+            "fk_home_uniform",
+            f"kinematics: FK home mode, uniform inputs, per input (batch of "
+            f"{results['fk_home_uniform']['n']:,})",
+            results["fk_home_uniform"],
+            per_item=True,
+            targets=("fk_home_uniform_per_second",),
+        ),
+        timed(
             "fk_home_single_call",
             "kinematics: FK home mode, one input per call",
             results["fk_home_single_call"],

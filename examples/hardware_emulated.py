@@ -13,23 +13,33 @@ from spm_pin.hardware import (
     ServoSettings,
     ServoSync,
 )
+from spm_pin.hardware.emulated_bus import LATENCY_TIMER_MS
 
 
 def main() -> None:
     robot = spm.build_robot()
     demo = np.radians([60.0, 90.0, 120.0])  # the study's demonstration input
     colliding = np.radians([60.0, 90.0, 220.0])  # the study's colliding input
+    # Factory-fresh servos answer at 57600 bit/s; the controller opens the port at the
+    # same rate, and allows for the emulator's latency on a busy machine.
     with EmulatedBus(ids=(1, 2, 3)) as emulator:
         config = HardwareConfig(
             port=emulator.port,
+            baudrate=emulator.baudrate,
+            latency_timer_ms=LATENCY_TIMER_MS,
             servo=ServoSettings(
                 profile_velocity=np.radians(200), profile_acceleration=np.radians(2000)
             ),
             safety=SafetyLimits(max_speed=np.radians(150), max_acceleration=np.radians(900)),
         )
-        print(f"emulated bus on {emulator.port}")
+        print(f"emulated bus on {emulator.port} at {config.baudrate} bit/s")
         with (
-            ServoBus(emulator.port, config.ids) as servos,
+            ServoBus(
+                config.port,
+                config.ids,
+                baudrate=config.baudrate,
+                latency_timer_ms=config.latency_timer_ms,
+            ) as servos,
             ServoSync(servos, config, robot=robot) as sync,
         ):
             start = sync.start()

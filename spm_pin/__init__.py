@@ -21,6 +21,7 @@ from .errors import (
     UnsafeCommandError,
 )
 from .kinematics import (
+    Assembly,
     FKAllResult,
     FKResult,
     IKAllResult,
@@ -32,6 +33,7 @@ from .kinematics import (
     inverse_kinematics,
     inverse_kinematics_all,
     jacobian,
+    select_assembly,
     track,
 )
 
@@ -131,6 +133,7 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "XM540_W150",
+    "Assembly",
     "CalibrationResult",
     "ClosedLoop",
     "ClosedLoopDynamics",
@@ -188,6 +191,7 @@ __all__ = [
     "load_readings",
     "plan_poses",
     "plot_torques",
+    "select_assembly",
     "simulate_mujoco",
     "synthetic_readings",
     "track",

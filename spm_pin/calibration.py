@@ -89,6 +89,7 @@ import csv
 import dataclasses
 import io
 import math
+import os
 import re
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -361,7 +362,7 @@ def _hardware_config_class() -> type[HardwareConfig]:
 def _triple(value: Any, name: str) -> tuple[float, float, float]:
     try:
         array = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(
             f"{name} must be 3 numbers, got {value!r}", argument=name, value=value
         ) from exc
@@ -415,7 +416,7 @@ class Readings:
         try:
             theta = np.array(self.theta, dtype=float)
             orientation = np.array(self.orientation, dtype=float)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(
                 "theta and orientation must be numeric arrays", argument="theta"
             ) from exc
@@ -738,6 +739,12 @@ def parse_readings(
 
 def load_readings(path: str | Path, *, joints: JointConvention | None = None) -> Readings:
     """Read a readings CSV file (see :func:`parse_readings`, also for ``joints``)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(
+            f"path must be a file path (str or Path), got {type(path).__name__}",
+            argument="path",
+            value=path,
+        )
     text, source = _read_text(path, "readings file")
     return parse_readings(text, source=source, joints=joints)
 
@@ -1074,7 +1081,7 @@ class CalibrationParameters:
     @classmethod
     def nominal(
         cls,
-        design: SPMDesign | None = None,
+        design: SPMDesign | str | None = None,
         *,
         mount: npt.ArrayLike | None = None,
         reference: npt.ArrayLike | None = None,
@@ -1090,7 +1097,7 @@ class CalibrationParameters:
             reference=np.eye(3) if reference is None else np.asarray(reference, dtype=float),
         )
 
-    def design(self, base: SPMDesign | None = None, *, name: str | None = None) -> SPMDesign:
+    def design(self, base: SPMDesign | str | None = None, *, name: str | None = None) -> SPMDesign:
         """``base`` (default: the prototype) with these link angles."""
         base = check_design(base)
         return dataclasses.replace(
@@ -1980,7 +1987,7 @@ def _initial_offsets(
 
 def calibrate(
     readings: Readings,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     parameters: Sequence[str] | str | None = None,
     start: CalibrationParameters | None = None,
@@ -2378,7 +2385,7 @@ def _observability_of(
 
 def observability(
     theta: npt.ArrayLike,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     parameters: Sequence[str] | str | None = None,
     kind: str = "quaternion",
@@ -2414,7 +2421,7 @@ def observability(
 def _as_poses(theta: npt.ArrayLike, name: str) -> FloatArray:
     try:
         array = np.asarray(theta, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(f"{name} must be angles [rad] of shape (N, 3)", argument=name) from exc
     if (
         array.ndim != 2
@@ -2598,7 +2605,7 @@ def _sample_poses(
 
 def plan_poses(
     count: int,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     parameters: Sequence[str] | str | None = None,
     kind: str = "quaternion",
@@ -2731,7 +2738,7 @@ class SyntheticReadings:
 
 def synthetic_readings(
     poses: int | npt.ArrayLike = 100,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     seed: int = 0,
     truth: CalibrationParameters | None = None,
@@ -2793,6 +2800,7 @@ def synthetic_readings(
         if (
             isinstance(value, bool)
             or not isinstance(value, (int, float))
+            or not (-1e308 <= value <= 1e308)  # NaN, inf and ints too large for a float
             or not (math.isfinite(value) and value >= 0)
         ):
             raise InputError(f"{name} must be a number >= 0, got {value!r}", argument=name)

@@ -6,30 +6,36 @@ where a value does not exist; NaN is never emitted).
 
 Commands::
 
-    spm fk T1 T2 T3 [--all] [--json] [--design FILE] [--solver analytic|projection]
+    spm fk T1 T2 T3 [--all] [--json] [--design NAME|FILE] [--solver analytic|projection]
     spm ik (--matrix R11 .. R33 | --quaternion W X Y Z | --rpy ROLL PITCH YAW)
-           [--mode LABEL|INDEX] [--all] [--json] [--design FILE]
-    spm design [--preset NAME | --design FILE] [--out FILE]
+           [--mode LABEL|INDEX] [--all] [--json] [--design NAME|FILE]
+    spm design [--preset NAME | --design NAME|FILE] [--out FILE]
     spm demo [--out DIR] [--quick] [--workspace-step DEG] [--quiet] [--json]
-    spm export [--design FILE] [--out DIR] [--json]
-    spm show T1 T2 T3 [--html FILE] [--mode LABEL] [--axes] [--frame] [--json] [--design FILE]
+    spm export [--design NAME|FILE] [--out DIR] [--json]
+    spm show T1 T2 T3 [--html FILE] [--mode LABEL] [--axes] [--frame] [--json] [--design NAME|FILE]
     spm animate [--from T1 T2 T3] --to T1 T2 T3 [--samples N] [--duration S] --html FILE
-                [--axes] [--frame] [--json] [--design FILE]
+                [--axes] [--frame] [--json] [--design NAME|FILE]
     spm servo emulate [--ids ID ...] | status | move T1 T2 T3 | follow  (see spm servo -h)
-    spm calibrate READINGS.csv [--out FILE] [--design FILE] [--parameters LIST] [--force]
+    spm calibrate READINGS.csv [--out FILE] [--design NAME|FILE] [--parameters LIST] [--force]
                 [--report FILE] [--plot FILE | --no-plot] [--offsets FILE]
                 [--servo-config FILE [--servo-out FILE]] [--json]
-    spm plan-poses N [--out FILE] [--design FILE] [--parameters LIST] [--seed S] [--json]
+    spm plan-poses N [--out FILE] [--design NAME|FILE] [--parameters LIST] [--seed S] [--json]
     spm synth-readings [N] --out FILE [--poses FILE] [--seed S] [--unit UNIT] [--json]
     spm torques [--from T1 T2 T3] (--to T1 T2 T3 | --file CSV) [--duration S] [--rate HZ]
-                [--gravity GX GY GZ] [--plot FILE] [--json] [--design FILE]
-    spm collide T1 T2 T3 [--margin-mm MM] [--json] [--design FILE]
+                [--gravity GX GY GZ] [--plot FILE] [--json] [--design NAME|FILE]
+    spm collide T1 T2 T3 [--margin-mm MM] [--json] [--design NAME|FILE]
     spm workspace [--step DEG | --samples N [--seed S]] [--range LOW HIGH] [--margin-mm MM]
                 [--min-dexterity X] [--no-clearance] [--workers N] [--out DIR]
-                [--no-plots] [--quiet] [--json] [--design FILE]
+                [--no-plots] [--quiet] [--json] [--design NAME|FILE]
 
 Every bad argument and every :class:`~spm_pin.SPMError` raised by the library is
-reported as one line ``spm: error: ...`` on stderr with exit status 2.
+reported as one line ``spm: error: ...`` on stderr with exit status 2 (so is an
+orientation that ``spm ik`` cannot reach, naming every leg that cannot close).
+``spm torques`` exits with status 1 when the motion exceeds the servos'
+torque-speed envelope (its report is printed all the same), ``spm demo`` when its
+cross-checks disagree, ``spm calibrate`` when the readings cannot identify the
+parameters. Lists of results (``--all``) are numbered from 0 in text as in JSON, the
+numbers that ``--mode INDEX`` takes.
 """
 
 from __future__ import annotations
@@ -42,7 +48,7 @@ import math
 import os
 import re
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -51,7 +57,7 @@ import numpy.typing as npt
 
 from ._version import __version__
 from .design import SPMDesign
-from .errors import SPMError
+from .errors import SPMError, UnreachableError
 from .kinematics import (
     WORKING_MODE_LABELS,
     forward_kinematics,
@@ -84,6 +90,9 @@ Record = dict[str, Any]
 
 #: Exit status for bad arguments and library errors.
 EXIT_USAGE = 2
+#: Exit status of ``spm torques`` when the motion exceeds the servos' torque-speed
+#: envelope (the report is printed all the same).
+EXIT_OVER_LIMITS = 1
 
 #: Numbers that argparse must treat as positionals, not options: negative decimals
 #: with exponents, -inf/-nan (rejected later with a clear message), working-mode
@@ -129,10 +138,15 @@ def _mode(text: str) -> int | str:
 
 
 def _design(args: argparse.Namespace) -> SPMDesign:
-    """The design named by ``--design FILE`` or ``--preset`` (default: the prototype)."""
-    path: str | None = getattr(args, "design", None)
-    if path is not None:
-        return SPMDesign.load(path)
+    """The design named by ``--design NAME|FILE`` or ``--preset`` (default: the prototype).
+
+    ``--design`` takes a preset name or a design file (:meth:`SPMDesign.from_spec`: a
+    bare preset name is the preset even if a file of that name exists; ``./NAME`` is
+    the file).
+    """
+    spec: str | None = getattr(args, "design", None)
+    if spec is not None:
+        return SPMDesign.from_spec(spec)
     return SPMDesign.preset(getattr(args, "preset", None) or "prototype")
 
 
@@ -145,8 +159,9 @@ def _add_angle_arguments(parser: argparse.ArgumentParser) -> None:
 def _add_design_option(parser: argparse._ActionsContainer) -> None:
     parser.add_argument(
         "--design",
-        metavar="FILE",
-        help="design TOML file (default: the prototype; see 'spm design')",
+        metavar="NAME|FILE",
+        help=f"a preset ({', '.join(SPMDesign.preset_names())}) or a design TOML file "
+        "(default: the prototype; see 'spm design')",
     )
 
 
@@ -253,8 +268,9 @@ def _render(record: Record, indent: str = "") -> list[str]:
             lines.append(f"{indent}{key}:")
             lines.extend(_render(value, indent + "  "))
         elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
-            for number, item in enumerate(value, start=1):
-                lines.append(f"{indent}{key} {number}:")
+            # Numbered from 0, as the JSON list and the --mode INDEX options count.
+            for number, item in enumerate(value):
+                lines.append(f"{indent}{key}[{number}]:")
                 lines.extend(_render(item, indent + "  "))
         elif isinstance(value, list) and value and all(isinstance(v, list) for v in value):
             for number, row in enumerate(value):
@@ -409,6 +425,7 @@ def fk_all_record(theta_deg: Sequence[float], design: SPMDesign) -> Record:
         "count": count,
         "modes": [
             {
+                "index": k,
                 "label": labels[k],
                 "home": modes.home[k],
                 "R": modes.R[k],
@@ -456,16 +473,18 @@ def ik_record(
     modes = range(len(WORKING_MODE_LABELS)) if all_modes else (mode,)
     # Batches of one: an unreachable orientation is flagged instead of raised.
     results = [inverse_kinematics(R[None], design, mode=m) for m in modes]
+    indices = list(modes) if all_modes else [_working_mode_index(mode)]
     leg_reachable = results[0].leg_reachable[0]  # the same in every working mode
     reachable = bool(np.all(leg_reachable))
     solutions = [
         {
             "theta_deg": np.degrees(ik.theta[0]) if reachable else None,
+            "index": index,
             "mode": ik.mode,
             "home": ik.mode == WORKING_MODE_LABELS[0],
             "b": ik.b[0] if reachable else None,
         }
-        for ik in results
+        for ik, index in zip(results, indices, strict=True)
     ]
     record: Record = {"design": design.name}
     if all_modes:
@@ -476,16 +495,36 @@ def ik_record(
         record["reachable"] = reachable
         record.update(solutions[0])
     record["leg_reachable"] = leg_reachable
-    record["failing_leg"] = None if reachable else int(np.argmin(leg_reachable)) + 1
+    record["failing_legs"] = [int(i) + 1 for i in np.flatnonzero(~np.asarray(leg_reachable))]
     record.update(_orientation(R))
     return record
+
+
+def _working_mode_index(mode: int | str) -> int:
+    return mode if isinstance(mode, int) else WORKING_MODE_LABELS.index(mode)
 
 
 def _run_ik(args: argparse.Namespace) -> int:
     design = _design(args)
     R = _target_rotation(args)
-    _emit(ik_record(R, design, args.mode, all_modes=args.all), args.json)
+    record = ik_record(R, design, args.mode, all_modes=args.all)
+    if not record["reachable"]:
+        legs = record["failing_legs"]
+        which = f"leg {legs[0]}" if len(legs) == 1 else "legs " + _and_list(map(str, legs))
+        rpy = ", ".join(f"{x:g}" for x in np.round(np.asarray(record["rpy_deg"], dtype=float), 6))
+        raise _UsageError(
+            f"the orientation (rpy = [{rpy}] deg) is out of reach of design "
+            f"{design.name!r}: {which} cannot close (no input angle puts w_i at alpha2 from "
+            "v_i); 'spm workspace' maps the reachable orientations"
+        )
+    _emit(record, args.json)
     return 0
+
+
+def _and_list(items: Iterable[str]) -> str:
+    """'2 and 3', '1, 2 and 3'."""
+    words = list(items)
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
 # ---------------------------------------------------------------------------- design
@@ -581,14 +620,44 @@ def _serve_until_interrupted(viz: Any, record: Record, as_json: bool) -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _assembly_mode(theta_deg: Sequence[float], mode: str, design: SPMDesign) -> str:
+    """--mode of show: 'nearest', 'home', a label, or an index of 'spm fk --all'."""
+    if not mode.isdigit():
+        return mode
+    every = forward_kinematics_all(np.radians(np.asarray(theta_deg, dtype=float)), design)
+    count = int(every.count)
+    if int(mode) >= count:
+        raise _UsageError(
+            f"--mode {mode}: theta = {list(theta_deg)} deg has {count} assembly mode(s), "
+            f"indices 0..{count - 1} of 'spm fk T1 T2 T3 --all'"
+            if count
+            else f"--mode {mode}: theta = {list(theta_deg)} deg has no real assembly mode"
+        )
+    return str(every.labels[int(mode)])
+
+
+def _display(viz: Any, theta_deg: Sequence[float], mode: str) -> Any:
+    """viz.display at theta [deg] in --mode, with command-line hints on failure."""
+    try:
+        return viz.display(np.radians(theta_deg), mode=mode)
+    except UnreachableError as exc:
+        raise _UsageError(
+            f"theta = {list(theta_deg)} deg has no assembly in mode {mode!r}; 'spm fk "
+            f"{' '.join(f'{t:g}' for t in theta_deg)} --all' lists the modes that exist, and "
+            "--mode nearest (the default) shows the one nearest to home"
+        ) from exc
+
+
 def _run_show(args: argparse.Namespace) -> int:
     viz = _visualizer(args)
     theta_deg = [args.T1, args.T2, args.T3]
-    pairs = viz.display(np.radians(theta_deg), mode=args.mode)
+    mode = _assembly_mode(theta_deg, args.mode, viz.robot.design)
+    pairs = _display(viz, theta_deg, mode)
     record: Record = {
         "design": viz.robot.design.name,
         "theta_deg": theta_deg,
-        "mode": args.mode,
+        "mode": viz.mode,
+        "home": viz.home,
         "colliding": [list(pair) for pair in pairs],
     }
     if args.html is None:
@@ -615,6 +684,7 @@ def _run_animate(args: argparse.Namespace) -> int:
         "to_deg": args.to_deg,
         "samples": args.samples,
         "duration_s": args.duration,
+        "modes": list(dict.fromkeys(motion.modes)),
         "colliding_samples": motion.colliding_samples,
         "html": str(viz.save_html(args.html)),
     }
@@ -1033,6 +1103,9 @@ def _run_torques(args: argparse.Namespace) -> int:
         except ImportError as exc:
             raise _UsageError(f"--plot needs matplotlib: {exc}") from exc
     _emit(record, args.json)
+    if not check.within_limits:  # the servos cannot do it: a failure for scripts
+        print(f"spm: warning: {check.message}", file=sys.stderr)
+        return EXIT_OVER_LIMITS
     return 0
 
 
@@ -1055,7 +1128,9 @@ def _add_torques_parser(commands: Any) -> None:
         "XM540-W150 servos must give, their peak and RMS values, and a verdict against "
         "the servo's torque-speed envelope (7.3 N m stall, 53 rpm no-load at 12 V). The "
         "motion is a minimum-jerk move from --from (default home) to --to in --duration "
-        "seconds, or a CSV file (time_s,theta_1_deg,theta_2_deg,theta_3_deg).",
+        "seconds, or a CSV file (time_s,theta_1_deg,theta_2_deg,theta_3_deg). Exit status 1 "
+        "when the motion exceeds the servos' torque-speed envelope (the report is printed "
+        "all the same).",
     )
     _add_motion_options(torques, to_required=False)
     torques.add_argument(
@@ -1385,9 +1460,11 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--html", metavar="FILE", help="write the scene to FILE instead of serving")
     show.add_argument(
         "--mode",
-        default="home",
-        metavar="LABEL",
-        help="assembly mode: home (default) or a label of 'spm fk --all' such as +-+/+",
+        default="nearest",
+        metavar="LABEL|INDEX",
+        help="assembly mode: nearest (default: the home mode where it exists, else the real "
+        "mode nearest to it, named in the output), home, or a label or index of "
+        "'spm fk T1 T2 T3 --all' such as +-+/+, -+-/-#2 or 3",
     )
     _add_view_options(show)
     _add_json_option(show)
@@ -1400,8 +1477,9 @@ def build_parser() -> argparse.ArgumentParser:
         "animate",
         help="write an animation of a motion between input angles to an HTML file",
         description="Animate the straight motion in input space from --from (default home) "
-        "to --to [deg], followed continuously from the home assembly mode, colliding links "
-        "in black, into a self-contained HTML file. Needs the viz extra.",
+        "to --to [deg], followed continuously from the home assembly mode (where it does not "
+        "exist at --from, from the real mode nearest to it; 'modes' names the modes shown), "
+        "colliding links in black, into a self-contained HTML file. Needs the viz extra.",
     )
     _add_motion_options(animate, to_required=True)
     animate.add_argument(

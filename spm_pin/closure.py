@@ -68,7 +68,19 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from .errors import ConvergenceError, FileFormatError, InputError, SingularityError
-from .kinematics._common import check_count, float_array, require_finite
+from .kinematics._common import (
+    ANGLE_LIMIT,
+    check_count,
+    float_array,
+    require_angles,
+    require_bounded,
+)
+
+#: ``actuated.dot(actuated)`` at most this bounds every entry by ANGLE_LIMIT.
+_LIMIT_SQUARED = ANGLE_LIMIT**2
+#: Largest |entry| of a frame target (positions [m], matrix entries): generous for a
+#: mechanism metres in size, and small enough that the least-squares steps stay finite.
+TARGET_LIMIT = 1e6
 
 __all__ = [
     "CLOSED_TOL",
@@ -577,8 +589,12 @@ class ClosedLoop:
                     argument=name,
                     value=actuated,
                 )
-        if not math.isfinite(float(array.dot(array))):  # cheap test first: a NaN spreads
-            require_finite(array, name, actuated)
+        # Cheap test first (a NaN spreads; a sum of squares <= limit**2 bounds every
+        # entry), then the one rule for joint values: finite, |value| <= ANGLE_LIMIT.
+        with np.errstate(over="ignore", invalid="ignore"):
+            inside = float(array.dot(array)) <= _LIMIT_SQUARED
+        if not inside:
+            require_angles(array, name, actuated)
         return array
 
     def _check_q(self, q: Any, name: str = "q") -> FloatArray:
@@ -591,7 +607,7 @@ class ClosedLoop:
                 argument=name,
                 value=q,
             )
-        require_finite(array, name, q)
+        require_angles(array, name, q)
         return array
 
     def _start(self, start: Any, theta: FloatArray) -> tuple[FloatArray, bool]:
@@ -975,7 +991,7 @@ class ClosedLoop:
         n = self.n_actuated
         try:
             points = np.array(path, dtype=float)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(
                 f"path must be numbers of shape (N, {n}) [rad or m], got {path!r}",
                 argument="path",
@@ -988,13 +1004,7 @@ class ClosedLoop:
                 argument="path",
                 value=path,
             )
-        if not np.all(np.isfinite(points)):
-            bad = int(np.argwhere(~np.all(np.isfinite(points), axis=1))[0, 0])
-            raise InputError(
-                f"path must be finite; point {bad} is {points[bad].tolist()}",
-                argument="path",
-                value=path,
-            )
+        require_angles(points, "path", path)
         return points
 
     def _follow(
@@ -1589,7 +1599,7 @@ def _frame_target(target: Any) -> tuple[str, Any]:
         "target",
         f"target must be a pin.SE3, a 4x4 or 3x3 matrix or a point (3,), got {target!r}",
     )
-    require_finite(array, "target", target)
+    require_bounded(array, "target", target, TARGET_LIMIT, "[m] (entries of the target)")
     if array.shape == (3,):
         return "position", array
     if array.shape == (4, 4):

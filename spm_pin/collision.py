@@ -74,8 +74,8 @@ import trimesh
 
 from .design import SPMDesign
 from .errors import ConvergenceError, InputError, SPMError, UnreachableError
-from .kinematics import forward_kinematics, forward_kinematics_all, jacobian
-from .kinematics._common import as_theta, check_design, mode_label
+from .kinematics import forward_kinematics, select_assembly
+from .kinematics._common import as_theta, check_design, require_angles
 from .model.geometry import LINK_NAMES, link_parts
 from .model.robot import CLOSURE_TOL
 
@@ -317,7 +317,7 @@ def _pieces(design: SPMDesign) -> dict[str, tuple[ConvexPiece, ...]]:
     return result
 
 
-def convex_pieces(design: SPMDesign | None = None) -> dict[str, tuple[ConvexPiece, ...]]:
+def convex_pieces(design: SPMDesign | str | None = None) -> dict[str, tuple[ConvexPiece, ...]]:
     """Exact convex pieces of every link (keys :data:`LINK_NAMES`), link frame [m].
 
     Convex parts (cylinders, boxes, hulls) are one piece each. Curved plates, tubes
@@ -1234,7 +1234,7 @@ class CollisionChecker:
             return x  # the common case, kept short
         try:
             array = np.asarray(x, dtype=float)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(
                 f"x must be input angles theta (3,) or a joint configuration q (9,) [rad], "
                 f"got {x!r}",
@@ -1242,7 +1242,7 @@ class CollisionChecker:
                 value=x,
             ) from exc
         if array.shape == (3,):
-            return self._theta_configuration(array)
+            return self._theta_configuration(as_theta(array, "theta"))
         if array.shape != (self._model.nq,):
             raise InputError(
                 "x must be input angles theta of shape (3,) or a joint configuration q "
@@ -1250,8 +1250,7 @@ class CollisionChecker:
                 argument="x",
                 value=x,
             )
-        if not np.all(np.isfinite(array)):
-            raise InputError(f"x must be finite, got {array.tolist()}", argument="x", value=x)
+        require_angles(array, "x", x)
         return array
 
     def _theta_configuration(self, theta: FloatArray) -> FloatArray:
@@ -1733,7 +1732,7 @@ class CollisionChecker:
     def _as_q_batch(self, q: npt.ArrayLike) -> FloatArray:
         try:
             array = np.asarray(q, dtype=float)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(
                 f"q must be numbers of shape (N, 9) [rad], got {q!r}", argument="q", value=q
             ) from exc
@@ -1743,8 +1742,7 @@ class CollisionChecker:
                 argument="q",
                 value=q,
             )
-        if not np.all(np.isfinite(array)):
-            raise InputError("q must be finite, got NaN or inf", argument="q", value=q)
+        require_angles(array, "q", q)
         return array
 
     # --------------------------------------------------------------- distances
@@ -1916,25 +1914,6 @@ class CollisionReport:
 _THETA_LINKS = frozenset({"base", "proximal_1", "proximal_2", "proximal_3"})
 
 
-def _label(b: FloatArray, det_a: float) -> str:
-    """Assembly-mode label: signs of b_11, b_22, b_33, then of det A (``"+++/-"``)."""
-    return mode_label(b) + ("/+" if det_a > 0 else "/-")
-
-
-def _home_label(design: SPMDesign) -> str:
-    jac = jacobian(np.zeros((1, 3)), design)
-    return _label(jac.b[0], float(jac.det_a[0]))
-
-
-def _mode_order(labels: Sequence[str], home: str) -> list[int]:
-    """Indices of assembly-mode labels, nearest to the home label first (fewest
-    differing signs, then the given order)."""
-    return sorted(
-        range(len(labels)),
-        key=lambda k: (sum(x != y for x, y in zip(labels[k], home, strict=True)), k),
-    )
-
-
 def check_input(
     theta: npt.ArrayLike,
     robot: SPMRobot | None = None,
@@ -1943,10 +1922,10 @@ def check_input(
 ) -> CollisionReport:
     """Self-collision at input angles, even where the home assembly mode does not exist.
 
-    The home assembly mode is checked when it exists. Otherwise the real assembly mode
-    nearest to it (fewest signs of b_11, b_22, b_33, det A that differ from
-    ``+++/-``) is checked, and the report names it. With no real assembly at all, only
-    the links that theta alone places (base and proximal links) are checked.
+    The assembly mode is chosen by the library's one rule
+    (:func:`~spm_pin.select_assembly`): the home mode where it exists, else the real
+    assembly mode nearest to it, named in the report. With no real assembly at all,
+    only the links that theta alone places (base and proximal links) are checked.
 
     Args:
         theta: Input angles [rad], (3,).
@@ -1973,26 +1952,11 @@ def check_input(
             f"robot must be an SPMRobot, got {type(robot).__name__}", argument="robot", value=robot
         )
     checker = robot.collision_checker
-    fk = forward_kinematics(angles, robot.design)
-    reachable = bool(fk.reachable)
-    mode: str | None
-    home_label = _home_label(robot.design)
-    q: FloatArray | None
-    if reachable:
-        q = robot.configuration(angles)
-        jac = jacobian(angles[None], robot.design, R=fk.R[None])
-        mode, home = _label(jac.b[0], float(jac.det_a[0])), True
-    else:
-        every = forward_kinematics_all(angles, robot.design)
-        labels = [str(label) for label in every.labels[: int(every.count)]]
-        mode, home, q = None, False, None
-        for k in _mode_order(labels, home_label):
-            try:
-                q = robot.configuration(angles, mode=labels[k])
-            except (UnreachableError, SPMError):  # pragma: no cover - a mode that fails to close
-                continue
-            mode = labels[k]
-            break
+    chosen = select_assembly(angles, robot.design)
+    mode = str(chosen.label) if bool(chosen.exists) else None
+    q: FloatArray | None = None
+    if bool(chosen.exists):
+        q = robot._closed_configuration(angles, chosen.R)
     if q is not None:
         checked = checker.pairs
     else:
@@ -2006,9 +1970,9 @@ def check_input(
     distances = checker._distances_q(q, list(checked), True, math.inf)
     return CollisionReport(
         theta=angles,
-        reachable=reachable,
+        reachable=bool(chosen.home),
         mode=mode,
-        home=home,
+        home=bool(chosen.home),
         checked_pairs=tuple(checked),
         pairs=pairs,
         distances=distances,

@@ -845,7 +845,13 @@ def _demo_inverse(ctx: DemoContext) -> DemoSection:
         "b": ik.b,
         "round_trip_error_deg": error,
     }
-    return DemoSection("inverse", "Inverse kinematics of the home R (round trip)", data)
+    where = ", ".join(f"{x:g}" for x in np.round(np.degrees(ctx.theta), 6))
+    return DemoSection(
+        "inverse",
+        f"Inverse kinematics of the platform orientation at theta = [{where}] deg "
+        "(home working mode, round trip)",
+        data,
+    )
 
 
 def _demo_motion(ctx: DemoContext) -> DemoSection:

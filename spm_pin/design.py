@@ -26,8 +26,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -36,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 import tomli_w
 
-from .errors import DesignError, FileFormatError
+from .errors import DesignError, FileFormatError, InputError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -188,12 +189,33 @@ def _check_angle(value: float, name: str, low: float, high: float) -> float:
     return float(value)
 
 
+#: Preset names and the classmethods that make them (see :meth:`SPMDesign.preset`).
+_PRESETS: dict[str, str] = {"prototype": "prototype", "agile_eye": "agile_eye"}
+
+
+def _preset_key(name: object) -> str | None:
+    """The preset ``name`` stands for (any case, ``-`` for ``_``), or None."""
+    if not isinstance(name, str):
+        return None
+    key = name.strip().lower().replace("-", "_")
+    return key if key in _PRESETS else None
+
+
+def _is_bare_name(text: str) -> bool:
+    """True for a plain name: no directory part and no suffix (``agile_eye``, not
+    ``./agile_eye`` or ``agile_eye.toml``)."""
+    separators = {"/", os.sep} | ({os.altsep} if os.altsep else set())
+    return not any(sep in text for sep in separators) and not Path(text).suffix
+
+
 @dataclasses.dataclass(frozen=True)
 class SPMDesign:
     """Parameters of a 3-RRR spherical parallel manipulator (frozen, validated).
 
     Angles are in radians. Build one with :meth:`prototype`, :meth:`agile_eye`,
-    :meth:`coaxial` or the constructor; save and load with :meth:`save` / :meth:`load`.
+    :meth:`coaxial` or the constructor; save and load with :meth:`save` / :meth:`load`;
+    :meth:`from_spec` takes a design, a preset name or a file, as every function and
+    command that accepts a design does.
 
     Raises:
         DesignError: a parameter is impossible (its name is in the message and in
@@ -298,15 +320,43 @@ class SPMDesign:
     def agile_eye(cls) -> SPMDesign:
         """The Agile Eye: a1 = a2 = 90 deg, mutually orthogonal base and platform axes.
 
-        The base axes are u_i = [sin g cos eta_i, sin g sin eta_i, -cos g] with
-        g = acos(1/sqrt(3)), so they are mutually orthogonal; beta = g makes the
-        platform axes orthogonal too.
+        The base axes are u_i = [sin g cos(eta_i + t), sin g sin(eta_i + t), -cos g]
+        with g = acos(1/sqrt(3)), so they are mutually orthogonal, and t = -100 deg;
+        beta = g makes the platform axes orthogonal too. The twist t (where the base
+        triad stands about z relative to the platform's at home) only chooses which
+        pose of the mechanism is home (theta = 0, R = identity). It is chosen so that
+        the links do not collide at home and the inputs are regular there:
+
+        * Every proximal link is a plate on one inner sphere and every distal link a
+          plate on one outer sphere (:mod:`spm_pin.model.geometry`), so two links of a
+          kind meet wherever their great-circle arcs cross, whatever their width and
+          thickness. With t = 0 (this preset before), the distal arc w_1 -> v_1
+          crosses the arc w_2 -> v_2 4 deg from w_1 and the proximal links rise 53 mm
+          above O, through the platform plate: no link sizes free that home. With
+          t = -100 deg the proximal arcs stay 36 deg apart and the distal arcs 54 deg
+          apart at their closest, and the proximal links stay below the platform.
+        * With t = 0 or -90 deg, inputs in round degrees (multiples of 15 deg) often
+          place a w_i where the forward kinematics degenerates (all its modes singular,
+          coinciding roots; theta = [60, 90, 120] deg is one for t = -90). With
+          t = -100 deg none on a 5 deg grid does, and the study's input
+          [60, 90, 120] deg is reachable in the home assembly mode.
+
+        Link sizes: the prototype's :class:`LinkDimensions` (inner sphere 75 mm,
+        outer sphere 90 mm, plates 30 and 25 mm wide and 8 mm thick, platform plate of
+        70 mm radius 45 mm above O): a real robot of the prototype's build and
+        servos, and sizes the home above clears. The nearest links at home are two
+        proximal links, 15.3 mm apart (then a proximal and a distal link, 19.7 mm);
+        the prototype's home clearance is 1.0 mm, set by its nested drive tubes,
+        which the Agile Eye (one short shaft per leg) has not. The kinematics do not
+        depend on these sizes.
         """
         # g = acos(1/sqrt(3)) = 54.7356... deg, kept to the 12 decimals a design file holds
         g = math.radians(_round_deg(math.acos(1.0 / math.sqrt(3.0))))
         eta = (0.0, math.radians(120.0), math.radians(240.0))
+        twist = math.radians(-100.0)
         axes = tuple(
-            (math.sin(g) * math.cos(e), math.sin(g) * math.sin(e), -math.cos(g)) for e in eta
+            (math.sin(g) * math.cos(e + twist), math.sin(g) * math.sin(e + twist), -math.cos(g))
+            for e in eta
         )
         return cls(
             alpha1=math.pi / 2,
@@ -314,20 +364,75 @@ class SPMDesign:
             beta=g,
             eta=eta,
             base_axes=axes,
+            dimensions=LinkDimensions(),
             name="agile_eye",
         )
 
     @classmethod
+    def preset_names(cls) -> tuple[str, ...]:
+        """The names :meth:`preset` and :meth:`from_spec` accept: ``("prototype", "agile_eye")``."""
+        return tuple(_PRESETS)
+
+    @classmethod
     def preset(cls, name: str) -> SPMDesign:
-        """A preset by name: ``"prototype"`` or ``"agile_eye"``."""
-        presets = {"prototype": cls.prototype, "agile_eye": cls.agile_eye}
-        if name not in presets:
+        """A preset by name: ``"prototype"`` or ``"agile_eye"``.
+
+        Case does not matter and ``-`` stands for ``_`` (``"Agile-Eye"`` is the Agile Eye).
+
+        Raises:
+            DesignError: no preset has that name (the message lists the presets).
+        """
+        key = _preset_key(name)
+        if key is None:
             raise DesignError(
-                f"unknown preset {name!r}; choose one of {sorted(presets)}",
+                f"unknown preset {name!r}; choose one of {', '.join(_PRESETS)}",
                 parameter="preset",
                 value=name,
             )
-        return presets[name]()
+        factory: Callable[[], SPMDesign] = getattr(cls, _PRESETS[key])
+        return factory()
+
+    @classmethod
+    def from_spec(cls, spec: SPMDesign | str | os.PathLike[str] | None) -> SPMDesign:
+        """A design from what a user gives: a design, a preset name or a TOML file.
+
+        * an :class:`SPMDesign` is returned as it is; ``None`` gives the prototype;
+        * a bare preset name (``"prototype"``, ``"agile_eye"``; any case, ``-`` for
+          ``_``) gives the preset, even when a file of that name exists in the current
+          directory: a bare name is never read as a file (write ``./agile_eye`` for the
+          file);
+        * anything else is the path of a design TOML file (:meth:`load`).
+
+        Raises:
+            DesignError: a bare name that is neither a preset nor an existing file (the
+                message lists the presets), or a file whose design is impossible.
+            FileFormatError: the file cannot be read or is not a valid design.
+            InputError: ``spec`` is of another type.
+        """
+        if spec is None:
+            return cls.prototype()
+        if isinstance(spec, SPMDesign):
+            return spec
+        if not isinstance(spec, (str, os.PathLike)):
+            raise InputError(
+                "design must be an SPMDesign, a preset name or a design file, got "
+                f"{type(spec).__name__}",
+                argument="design",
+                value=spec,
+            )
+        text = str(os.fspath(spec))
+        bare = _is_bare_name(text)
+        key = _preset_key(text) if bare else None
+        if key is not None:
+            return cls.preset(key)
+        if bare and not Path(text).is_file():
+            raise DesignError(
+                f"unknown design {text!r}: not a preset ({', '.join(_PRESETS)}) and not a "
+                "file either",
+                parameter="design",
+                value=text,
+            )
+        return cls.load(text)
 
     # ------------------------------------------------------------ derived data
     @cached_property

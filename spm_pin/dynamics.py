@@ -96,7 +96,14 @@ import pinocchio as pin
 
 from .closure import CLOSED_TOL, ClosedLoop
 from .errors import ConvergenceError, FileFormatError, InputError, SingularityError
-from .kinematics._common import check_count, float_array, require_finite
+from .kinematics._common import (
+    ANGLE_LIMIT,
+    check_count,
+    float_array,
+    require_angles,
+    require_bounded,
+    require_finite,
+)
 from .model.robot import JOINT_NAMES, SPMRobot, build_robot
 
 __all__ = [
@@ -168,6 +175,52 @@ _ZERO3 = (0.0, 0.0, 0.0)
 
 
 # ------------------------------------------------------------------------- checks
+#: Largest |value| accepted for the speeds [rad/s], torques [N m] and accelerations
+#: [rad/s^2] given to the dynamics, by unit. Generous physical bounds: 1e4 rad/s is
+#: ~95,000 rev/min (the XM540 turns at 5.5 rad/s), 1e4 N m is >1000 times its stall
+#: torque, 1e7 rad/s^2 is a servo reaching 1e4 rad/s in a millisecond. Beyond them the
+#: quadratic terms of the dynamics (speed**2 * inertia) and the constraint solve would
+#: overflow to inf or NaN; such inputs are refused instead. Angles [rad] follow the
+#: one rule of the kinematics (ANGLE_LIMIT).
+LIMITS: dict[str, float] = {
+    "[rad/s]": 1e4,
+    "[N m]": 1e4,
+    "[rad/s^2]": 1e7,
+    "[rad]": ANGLE_LIMIT,
+}
+
+
+def _bounded(array: FloatArray, name: str, value: Any, unit: str) -> None:
+    """InputError for NaN, inf or a value beyond LIMITS[unit] (finite only if no limit)."""
+    limit = LIMITS.get(unit)
+    if limit is None:
+        require_finite(array, name, value, unit)
+    else:
+        require_bounded(array, name, value, limit, unit)
+
+
+def _values(value: Any, name: str, unit: str) -> FloatArray:
+    """Numbers of any shape, finite and within LIMITS[unit], or InputError."""
+    if isinstance(value, (str, bytes)):
+        raise InputError(
+            f"{name} must be numbers {unit}, got {value!r}", argument=name, value=value
+        )
+    array = float_array(value, name, f"{name} must be numbers {unit}, got {value!r}")
+    _bounded(array, name, value, unit)
+    return array
+
+
+def _broadcast(*arrays: FloatArray, names: str) -> None:
+    try:
+        np.broadcast_shapes(*(a.shape for a in arrays))
+    except ValueError as exc:
+        raise InputError(
+            f"{names} must have shapes that broadcast, got {[a.shape for a in arrays]}",
+            argument=names.split(",")[0],
+            value=None,
+        ) from exc
+
+
 def _vector(value: Any, size: int, name: str, unit: str) -> FloatArray:
     """A finite float vector of shape (size,) (a scalar broadcasts), or InputError."""
     array = float_array(value, name, f"{name} must be {size} numbers {unit}, got {value!r}")
@@ -179,7 +232,7 @@ def _vector(value: Any, size: int, name: str, unit: str) -> FloatArray:
             argument=name,
             value=value,
         )
-    require_finite(array, name, value, unit)
+    _bounded(array, name, value, unit)
     return array
 
 
@@ -195,14 +248,17 @@ def _array3(value: Any, name: str, unit: str) -> FloatArray:
             argument=name,
             value=value,
         )
-    require_finite(array, name, value, unit)
+    _bounded(array, name, value, unit)
     return array
 
 
 def _positive(value: Any, name: str, unit: str, *, allow_zero: bool = False) -> float:
     """A finite number > 0 (or >= 0), or InputError."""
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    number = float(value) if ok else math.nan
+    try:
+        number = float(value) if ok else math.nan
+    except OverflowError:  # an int too large for a float
+        number = math.nan
     if not (math.isfinite(number) and (number >= 0.0 if allow_zero else number > 0.0)):
         relation = ">= 0" if allow_zero else "> 0"
         raise InputError(
@@ -347,7 +403,7 @@ class ServoModel:
 
     def torque_limits(self, speed: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         """(lower, upper) available torque [N m] at output speed(s) [rad/s]."""
-        omega = np.asarray(speed, dtype=float)
+        omega = _values(speed, "speed", "[rad/s]")
         stall = self.stall_torque
         slope = omega / self.no_load_speed
         upper: FloatArray = np.minimum(stall, stall * (1.0 - slope))
@@ -357,7 +413,9 @@ class ServoModel:
     def saturate(self, torque: npt.ArrayLike, speed: npt.ArrayLike) -> FloatArray:
         """Torques clipped to the envelope at the given speeds [N m]."""
         lower, upper = self.torque_limits(speed)
-        result: FloatArray = np.clip(np.asarray(torque, dtype=float), lower, upper)
+        tau = _values(torque, "torque", "[N m]")
+        _broadcast(tau, lower, names="torque, speed")
+        result: FloatArray = np.clip(tau, lower, upper)
         return result
 
     def command(
@@ -377,13 +435,19 @@ class ServoModel:
             goal_velocity: Goal speeds [rad/s] (default 0).
             feedforward: Torque added before clipping [N m] (default 0).
         """
-        position = np.asarray(theta, dtype=float)
-        speed = np.asarray(theta_dot, dtype=float)
-        torque = self.kp * (np.asarray(goal, dtype=float) - position) - self.kd * speed
+        position = _values(theta, "theta", "[rad]")
+        speed = _values(theta_dot, "theta_dot", "[rad/s]")
+        target = _values(goal, "goal", "[rad]")
+        _broadcast(position, speed, target, names="theta, theta_dot, goal")
+        torque = self.kp * (target - position) - self.kd * speed
         if goal_velocity is not None:
-            torque = torque + self.kd * np.asarray(goal_velocity, dtype=float)
+            rate = _values(goal_velocity, "goal_velocity", "[rad/s]")
+            _broadcast(torque, rate, names="goal_velocity, theta")
+            torque = torque + self.kd * rate
         if feedforward is not None:
-            torque = torque + np.asarray(feedforward, dtype=float)
+            extra = _values(feedforward, "feedforward", "[N m]")
+            _broadcast(torque, extra, names="feedforward, theta")
+            torque = torque + extra
         return self.saturate(torque, speed)
 
     def utilisation(self, torque: npt.ArrayLike, speed: npt.ArrayLike) -> FloatArray:
@@ -396,8 +460,11 @@ class ServoModel:
         inside the envelope of :meth:`torque_limits`; above 1 the servo cannot do it
         (too much torque, or a speed beyond what its voltage allows).
         """
-        tau = np.asarray(torque, dtype=float) / self.stall_torque
-        duty = tau + np.asarray(speed, dtype=float) / self.no_load_speed
+        tau_in = _values(torque, "torque", "[N m]")
+        omega = _values(speed, "speed", "[rad/s]")
+        _broadcast(tau_in, omega, names="torque, speed")
+        tau = tau_in / self.stall_torque
+        duty = tau + omega / self.no_load_speed
         result: FloatArray = np.maximum(np.abs(duty), np.abs(tau))
         return result
 
@@ -1139,7 +1206,7 @@ class ClosedLoopDynamics:
             f"q (9,), got {state!r}",
         )
         if array.shape == (3,):
-            require_finite(array, "theta", state, "[rad]")
+            require_angles(array, "theta", state)
             q: FloatArray = self.robot.configuration(array)
             return q
         if array.shape != (self.model.nq,):
@@ -1149,7 +1216,7 @@ class ClosedLoopDynamics:
                 argument="state",
                 value=state,
             )
-        require_finite(array, "q", state)
+        require_angles(array, "q", state)
         residual = math.sqrt(self._kinematics(array))
         if residual > CLOSED_TOL:
             raise InputError(
@@ -2272,6 +2339,13 @@ def plot_torques(
         InputError: a motion without sample times.
         ImportError: matplotlib is missing.
     """
+    if not isinstance(motion, (InverseDynamicsResult, SimulationResult)):
+        raise InputError(
+            "motion must be an InverseDynamicsResult or a SimulationResult, got "
+            f"{type(motion).__name__}",
+            argument="motion",
+            value=motion,
+        )
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
@@ -2397,6 +2471,12 @@ def simulate_mujoco(
             "simulate_mujoco supports viscous friction only (MuJoCo's frictionloss is "
             "not a smoothed Coulomb law)",
             argument="dynamics",
+        )
+    if not isinstance(mjcf, (str, Path)):
+        raise InputError(
+            f"mjcf must be the path of an MJCF file (str or Path), got {type(mjcf).__name__}",
+            argument="mjcf",
+            value=mjcf,
         )
     file = Path(mjcf)
     if not file.is_file():

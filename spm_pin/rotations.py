@@ -20,7 +20,7 @@ FloatArray = npt.NDArray[np.float64]
 def _finite(value: npt.ArrayLike, name: str, size: int) -> FloatArray:
     try:
         array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(f"{name} must be numbers, got {value!r}", argument=name) from exc
     if array.ndim == 0 or array.shape[-1] != size:
         raise InputError(

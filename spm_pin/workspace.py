@@ -22,9 +22,10 @@ At each point (home assembly mode):
   :func:`spm_pin.jacobian` (type I bounds the home-mode region; type II does not
   occur inside it for the prototype);
 * ``dexterity``: 1/kappa_2(J);
-* ``collision``, ``pair_mask``: self-collision (:mod:`spm_pin.collision`; where no
-  home-mode assembly exists only the proximal links, placed by theta alone, are
-  checked);
+* ``collision``, ``pair_mask``: self-collision (:mod:`spm_pin.collision`) in the
+  assembly mode of the library's rule (:func:`spm_pin.select_assembly`): where no
+  home-mode assembly exists, in the real mode nearest to it, as ``spm collide``
+  reports; with no real assembly, only the proximal links, placed by theta alone;
 * ``clearance``: a lower bound of the distance between the links at the point, from
   collision checks at a ladder of margins (the largest level at which nothing
   collides), leaving out the parts whose distance does not depend on the
@@ -58,7 +59,7 @@ import numpy.typing as npt
 
 from .design import SPMDesign
 from .errors import FileFormatError, InputError
-from .kinematics import forward_kinematics, jacobian
+from .kinematics import forward_kinematics, jacobian, select_assembly
 from .kinematics._common import check_design
 
 __all__ = [
@@ -133,9 +134,19 @@ class WorkspaceSettings:
     clearance: bool = True
     ladder: tuple[float, ...] = CLEARANCE_LADDER
 
+    def __post_init__(self) -> None:
+        _check_number("margin", self.margin, 0.0, 1.0)
+        _check_number("min_dexterity", self.min_dexterity, 0.0, 1.0)
+        if not isinstance(self.clearance, (bool, np.bool_)):
+            raise InputError(
+                f"clearance must be True or False, got {self.clearance!r}",
+                argument="clearance",
+                value=self.clearance,
+            )
+
 
 # ---------------------------------------------------------------------- gaps
-def _coaxial(design: SPMDesign | None) -> SPMDesign:
+def _coaxial(design: SPMDesign | str | None) -> SPMDesign:
     design = check_design(design)
     if not design.is_coaxial:
         raise InputError(
@@ -148,7 +159,7 @@ def _coaxial(design: SPMDesign | None) -> SPMDesign:
 
 
 def gap_inputs(
-    d12_deg: npt.ArrayLike, d23_deg: npt.ArrayLike, design: SPMDesign | None = None
+    d12_deg: npt.ArrayLike, d23_deg: npt.ArrayLike, design: SPMDesign | str | None = None
 ) -> FloatArray:
     """Input angles [rad] with theta_1 = 0 and the given gaps [deg] (broadcast).
 
@@ -162,7 +173,7 @@ def gap_inputs(
         d12 = np.asarray(d12_deg, dtype=float)
         d23 = np.asarray(d23_deg, dtype=float)
         d12, d23 = np.broadcast_arrays(d12, d23)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(
             f"gaps must be numbers [deg] of broadcastable shapes, got {d12_deg!r}, {d23_deg!r}",
             argument="gaps",
@@ -177,7 +188,7 @@ def gap_inputs(
     return result
 
 
-def gaps_from_theta(theta: npt.ArrayLike, design: SPMDesign | None = None) -> FloatArray:
+def gaps_from_theta(theta: npt.ArrayLike, design: SPMDesign | str | None = None) -> FloatArray:
     """Gaps (D12, D23, D31) [deg] of input angles theta [rad], (..., 3); they sum to 360.
 
     D12 and D23 are wrapped into (-180, 540] around the home gaps so that small
@@ -285,17 +296,25 @@ def _evaluate(
     bit = {pair: 1 << k for k, pair in enumerate(LINK_PAIRS)}
     plan0 = checker._plan(0.0)
     plan_m = checker._plan(settings.margin)
-    # Without a home-mode assembly only the links that theta places are checked.
+    # The library's rule (spm.select_assembly): without a home-mode assembly the real
+    # mode nearest to it is checked; with no real assembly, only the links theta places.
     placed = [p for p in LINK_PAIRS if p[0] in _THETA_LINKS and p[1] in _THETA_LINKS]
     plan_placed = checker._plan(0.0, pairs=placed)
     ladder = settings.ladder
     q = np.zeros((n, robot.model.nq))
     q[:, robot.actuated_q_idx] = theta
-    if np.any(reachable):
+    R = fk.R.copy()
+    assembled = reachable.copy()
+    if not np.all(reachable):
+        rest = np.nonzero(~reachable)[0]
+        other = select_assembly(theta[rest], design)
+        R[rest] = other.R
+        assembled[rest] = other.exists
+    if np.any(assembled):
         # q from the platform rotations just solved (checked against each leg).
-        q[reachable] = robot._configuration_from_rotation(theta[reachable], fk.R[reachable])
+        q[assembled] = robot._configuration_from_rotation(theta[assembled], R[assembled])
     for k in range(n):
-        pairs = checker._check(q[k], plan0 if reachable[k] else plan_placed, False)
+        pairs = checker._check(q[k], plan0 if assembled[k] else plan_placed, False)
         mask = 0
         for pair in pairs:
             mask |= bit[pair]
@@ -622,6 +641,7 @@ def _check_number(name: str, value: object, low: float, high: float = math.inf) 
     if (
         isinstance(value, bool)
         or not isinstance(value, (int, float, np.integer, np.floating))
+        or not -1e308 <= value <= 1e308  # NaN, inf and ints too large for a float
         or not math.isfinite(float(value))
         or not low <= float(value) <= high
     ):
@@ -633,10 +653,20 @@ def _check_number(name: str, value: object, low: float, high: float = math.inf) 
     return float(value)
 
 
+#: Largest count accepted (samples, seed, workers, chunk size).
+_MAX_COUNT = 2**32
+
+
 def _check_count(name: str, value: object, low: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not low <= value <= _MAX_COUNT
+    ):
         raise InputError(
-            f"{name} must be an integer >= {low}, got {value!r}", argument=name, value=value
+            f"{name} must be an integer in [{low}, {_MAX_COUNT}], got {value!r}",
+            argument=name,
+            value=value,
         )
     return int(value)
 
@@ -672,7 +702,7 @@ def _sampled_points(
 
 
 def workspace_map(
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     step_deg: float = 2.0,
     gap_range_deg: tuple[float, float] = (0.0, 360.0),
@@ -721,7 +751,7 @@ def workspace_map(
     _check_number("settings.min_dexterity", settings.min_dexterity, 0.0, 1.0)
     try:
         ladder = tuple(float(v) for v in settings.ladder)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         ladder = ()
     if (
         not ladder
@@ -739,7 +769,7 @@ def workspace_map(
     settings = dataclasses.replace(settings, ladder=ladder)
     try:
         low, high = (float(v) for v in gap_range_deg)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(
             f"gap_range_deg must be (low, high) [deg], got {gap_range_deg!r}",
             argument="gap_range_deg",

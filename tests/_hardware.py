@@ -10,15 +10,16 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from _hardware_data import IDS, LATENCY_MS
+from _hardware_data import BAUD, IDS, LATENCY_MS
 
 from spm_pin.hardware import EmulatedBus, ServoBus
 
 
 @pytest.fixture(scope="session")
 def emulator() -> Iterator[EmulatedBus]:
-    """One emulated bus of servos 1, 2, 3 for the whole session."""
+    """One emulated bus of servos 1, 2, 3 for the whole session, at the default rate."""
     with EmulatedBus(IDS) as bus:
+        assert bus.baudrate == BAUD == 57_600  # factory-fresh servos
         yield bus
 
 
@@ -32,5 +33,5 @@ def bus(emulator: EmulatedBus) -> EmulatedBus:
 @pytest.fixture
 def servo_bus(bus: EmulatedBus) -> Iterator[ServoBus]:
     """An open driver on the fresh emulated bus."""
-    with ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS, retries=2) as driver:
+    with ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS, retries=2) as driver:
         yield driver

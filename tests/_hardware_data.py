@@ -6,11 +6,29 @@ import numpy as np
 
 from spm_pin.hardware import XM540_W150, HardwareConfig, SafetyLimits
 from spm_pin.hardware.driver import ServoSettings
+from spm_pin.hardware.emulated_bus import LATENCY_TIMER_MS
+from spm_pin.hardware.emulator import DEFAULT_BAUDRATE
 
 #: Latency allowed for in the packet timeout [ms]: a silent servo costs 2 x this + 2 ms
-#: per attempt; large enough for a busy machine, small enough for quick fault tests.
-LATENCY_MS = 10.0
+#: + the wire time per attempt. The emulator is a process: on a loaded machine its
+#: replies come tens of ms late (10 ms here made 1 transaction in 70 time out).
+LATENCY_MS = LATENCY_TIMER_MS
+#: Line rate of the session's emulated bus [bit/s]: the emulator's default, the
+#: XM540-W150's factory default (57600). Every client of that bus opens it at this rate.
+BAUD = DEFAULT_BAUDRATE
 IDS = (1, 2, 3)
+
+
+def fail_budget(reply_bytes: int = 3 * (11 + 20), baudrate: int = BAUD) -> float:
+    """Longest a failing transaction may take [s]: 3 attempts x (packet timeout + pause).
+
+    The packet timeout is the wire time of ``reply_bytes`` at ``baudrate`` (10 bits a
+    byte) + 2 x LATENCY_MS + 2 ms; the pause before a retry is LATENCY_MS. Half a
+    second of slack covers the scheduler of a loaded machine.
+    """
+    wire_ms = reply_bytes * 10_000.0 / baudrate
+    return 3 * (wire_ms + 3 * LATENCY_MS + 2.0) / 1000.0 + 0.5
+
 
 #: Tolerances of the hardware tests.
 TOL = {
@@ -25,7 +43,12 @@ def fast_config(port: str, **safety: float) -> HardwareConfig:
     limits = SafetyLimits(**{"max_speed": 3.0, "max_acceleration": 15.0, **safety})
     servo = ServoSettings(profile_velocity=4.0, profile_acceleration=40.0)
     return HardwareConfig(
-        port=port, latency_timer_ms=LATENCY_MS, rate_hz=100.0, servo=servo, safety=limits
+        port=port,
+        baudrate=BAUD,
+        latency_timer_ms=LATENCY_MS,
+        rate_hz=100.0,
+        servo=servo,
+        safety=limits,
     )
 
 

@@ -51,6 +51,7 @@ RESULT_KEYS = {
 TIMING_KEYS = {"median_s", "p95_s", "p99_s", "per_second", "per_item_s", "n"}
 TARGET_KEYS = {
     "fk_home_per_second",
+    "fk_home_uniform_per_second",
     "fk_home_max_residual",
     "fk_home_speedup_vs_fsolve",
     "ik_per_second",

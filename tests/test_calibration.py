@@ -12,6 +12,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import _calibration_truth as independent
 import numpy as np
 import pytest
 from conftest import get_design
@@ -43,6 +44,16 @@ TOL = {
     "csv": 1e-11,  # values after a CSV round trip (12 significant digits)
     "poses_deg": 1e-6,  # pose list written with 6 decimals
     "fd_method": 1e-6,  # analytic and finite-difference calibrations agree [rad]
+    # Readings from the documented rule (tests/_calibration_truth.py):
+    "generators_reading": 1e-12,  # servo readings of both generators [rad] (same counts)
+    "generators_sensor": 1e-12,  # sensor rotations / axes of both generators
+    "truth_exact": 1e-8,  # noise-free, 2^40 counts per turn: estimates [rad]
+    "truth_exact_counts": 1e-4,  # ... and the identified zero offsets [counts]
+    "truth_counts_deg": 0.06,  # noise-free, XM540 counts (0.088 deg): estimates [deg]
+    "truth_rms_counts_deg": 0.06,  # ... and the RMS orientation error after [deg]
+    "truth_z": 5.0,  # 0.5 deg noise: |estimate - truth| <= truth_z standard deviations
+    "truth_rms_noise": 1.25,  # ... and RMS error after <= this * what the noise leaves
+    "wrong_factor": 10.0,  # a wrong convention misses by this many times the tolerance
 }
 #: Probability that an honest interval misses, per parameter and for the joint test
 #: (small: the tests check many intervals).
@@ -161,6 +172,204 @@ def test_noise_free_readings_give_the_truth_exactly() -> None:
         [e.value for e in result.estimates], truth_of(result, syn), atol=TOL["exact"]
     )
     np.testing.assert_allclose(result.error_deg, 0.0, atol=1e-6)
+
+
+# ---------------------------------------------- truth independent of the generator
+#: Known parameters of a simulated prototype, large and asymmetric enough that a sign
+#: or side error in the measurement rule shows.
+TRUTH = independent.Truth(
+    offsets_deg=(2.5, -1.8, 3.1),
+    alpha1_deg=45.4,
+    alpha2_deg=89.7,
+    beta_deg=90.3,
+    mount_deg=(3.0, -2.0, 4.0),
+    ref_deg=(2.0, -3.0, 0.0),
+)
+#: Encoder settings: one servo turning the other way, one geared 2:1, zero offsets
+#: away from 0 counts.
+ENCODERS = independent.Encoders(
+    direction=(1, -1, 1), zero_offset=(2048.0, 2048.0, 1000.0), gear_ratio=(1.0, 2.0, 1.0)
+)
+#: The same without visible encoder steps.
+FINE = dataclasses.replace(ENCODERS, ticks_per_turn=2**40)
+#: Noise level of the noisy recovery test [deg per axis].
+TRUTH_NOISE_DEG = 0.5
+
+
+def truth_poses(count: int, seed: int = 1) -> np.ndarray:
+    return independent.admissible_poses(count, TRUTH.design(spm.SPMDesign.prototype()), seed=seed)
+
+
+def truth_readings(
+    count: int,
+    kind: str = "quaternion",
+    *,
+    encoders: independent.Encoders = ENCODERS,
+    noise_deg: float = 0.0,
+    convention: str = "documented",
+) -> tuple[independent.Generated, cal.Readings]:
+    """Independent readings of TRUTH, and the library's reading of their file."""
+    generated = independent.generate(
+        TRUTH,
+        truth_poses(count),
+        spm.SPMDesign.prototype(),
+        kind=kind,
+        encoders=encoders,
+        noise_deg=noise_deg,
+        seed=5,
+        convention=convention,
+    )
+    return generated, cal.parse_readings(generated.text, source="independent.csv")
+
+
+def truth_errors(result: cal.CalibrationResult) -> dict[str, float]:
+    """|identified - true| per parameter [rad]; the mounting as one rotation angle."""
+    found = result.parameters
+    errors = {f"offset_{i + 1}": abs(float(found.offsets[i] - TRUTH.offsets[i])) for i in range(3)}
+    for name, true_value in zip(("alpha1", "alpha2", "beta"), TRUTH.links, strict=True):
+        errors[name] = abs(getattr(found, name) - float(true_value))
+    if result.readings.kind == "quaternion":
+        miss = independent.rotation_vector(found.mount.T @ TRUTH.mount)
+        errors["mount"] = float(np.linalg.norm(miss))
+    return errors
+
+
+def truth_rms_deg(result: cal.CalibrationResult) -> float:
+    return float(np.sqrt(np.mean(result.error_deg**2)))
+
+
+def recovers_counts_truth(result: cal.CalibrationResult) -> tuple[bool, str]:
+    """Whether a calibration of noise-free XM540 readings found TRUTH: every parameter
+    within TOL["truth_counts_deg"] and an RMS error within TOL["truth_rms_counts_deg"]."""
+    errors = {name: math.degrees(e) for name, e in truth_errors(result).items()}
+    rms = truth_rms_deg(result)
+    ok = max(errors.values()) <= TOL["truth_counts_deg"] and rms <= TOL["truth_rms_counts_deg"]
+    rounded = {name: round(value, 4) for name, value in errors.items()}
+    detail = f"errors [deg] {rounded}, rms {rms:.4f} deg"
+    return ok, detail
+
+
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+def test_independent_readings_match_the_library_generator(kind: str) -> None:
+    """Readings made from the documented rule and by synthetic_readings agree, for the
+    same parameters, poses and encoder settings (noise-free: the noise is drawn)."""
+    design = spm.SPMDesign.prototype()
+    generated, parsed = truth_readings(30, kind)
+    # The parser reads the counts by the documented formula.
+    np.testing.assert_allclose(
+        parsed.theta, ENCODERS.reading_rad(generated.ticks), atol=TOL["generators_reading"]
+    )
+    np.testing.assert_allclose(
+        parsed.orientation, generated.measured, atol=TOL["generators_sensor"]
+    )
+    truth = cal.CalibrationParameters(
+        offsets=TRUTH.offsets,
+        alpha1=float(TRUTH.links[0]),
+        alpha2=float(TRUTH.links[1]),
+        beta=float(TRUTH.links[2]),
+        mount=TRUTH.mount,
+        reference=TRUTH.reference,
+    )
+    joints = cal.JointConvention(
+        direction=ENCODERS.direction,
+        zero_offset_ticks=ENCODERS.zero_offset,
+        gear_ratio=ENCODERS.gear_ratio,
+    )
+    # The servos stand where the model's inputs are theta: at theta + offset.
+    commanded = generated.theta + TRUTH.offsets
+    library = cal.synthetic_readings(
+        commanded, design, truth=truth, noise_deg=0.0, kind=kind, joints=joints
+    )
+    np.testing.assert_allclose(library.theta, generated.theta, atol=TOL["generators_reading"])
+    np.testing.assert_allclose(library.readings.theta, parsed.theta, atol=TOL["generators_reading"])
+    np.testing.assert_allclose(
+        library.readings.orientation, generated.measured, atol=TOL["generators_sensor"]
+    )
+    assert library.readings.kind == parsed.kind == kind
+    assert library.readings.joints == parsed.joints == joints
+    for name, value in zip(("alpha1", "alpha2", "beta"), TRUTH.links, strict=True):
+        assert getattr(library.design, name) == pytest.approx(float(value), abs=1e-15)
+
+
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+def test_calibration_recovers_the_independent_truth_exactly(kind: str) -> None:
+    """Noise-free readings without visible encoder steps: every parameter, and the
+    encoder zero in counts (the count at which servo i reads offset_i), exactly."""
+    _, readings = truth_readings(40, kind, encoders=FINE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # good readings: no identifiability warning
+        result = cal.calibrate(readings, reference=TRUTH.reference)
+    assert result.ok
+    errors = truth_errors(result)
+    assert max(errors.values()) <= TOL["truth_exact"], errors
+    np.testing.assert_allclose(result.error_deg, 0.0, atol=1e-6)
+    np.testing.assert_allclose(
+        result.joints.zero_offset_ticks, FINE.counts(TRUTH.offsets), atol=TOL["truth_exact_counts"]
+    )
+    np.testing.assert_allclose(
+        [result.design.alpha1, result.design.alpha2, result.design.beta],
+        TRUTH.links,
+        atol=TOL["truth_exact"],
+    )
+
+
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+def test_calibration_recovers_the_independent_truth_from_counts(kind: str) -> None:
+    """Noise-free readings in whole XM540 counts (0.088 deg steps)."""
+    _, readings = truth_readings(60, kind)
+    result = calibrate_quietly(readings, reference=TRUTH.reference)
+    assert result.ok
+    ok, detail = recovers_counts_truth(result)
+    assert ok, detail
+
+
+@pytest.mark.parametrize("kind", ["quaternion", "axes"])
+def test_calibration_recovers_the_independent_truth_from_noisy_readings(kind: str) -> None:
+    """0.5 deg of sensor noise: each estimate within TOL["truth_z"] of its standard
+    deviations from the truth, and the remaining error the size of the noise."""
+    _, readings = truth_readings(100, kind, noise_deg=TRUTH_NOISE_DEG)
+    result = calibrate_quietly(readings, reference=TRUTH.reference)
+    assert result.ok
+    true_values = {f"offset_{i + 1}": float(TRUTH.offsets[i]) for i in range(3)}
+    true_values.update(zip(("alpha1", "alpha2", "beta"), map(float, TRUTH.links), strict=True))
+    true_values.update(
+        zip(("mount_x", "mount_y", "mount_z"), np.radians(TRUTH.mount_deg), strict=True)
+    )
+    for estimate in result.estimates:
+        miss = abs(estimate.value - true_values[estimate.name])
+        assert miss <= TOL["truth_z"] * estimate.std, (estimate.name, miss, estimate.std)
+    # The RMS orientation error per reading that the noise alone leaves: sqrt(3) *
+    # noise for a sensor rotation (the angle of 3 normal components); for axis readings
+    # the largest of 3 axis errors, each a Rayleigh angle with mean square 2 noise^2,
+    # so mean square 2 noise^2 (1 + 1/2 + 1/3).
+    factor = math.sqrt(3.0) if kind == "quaternion" else math.sqrt(11.0 / 3.0)
+    expected = factor * TRUTH_NOISE_DEG
+    assert truth_rms_deg(result) <= TOL["truth_rms_noise"] * expected
+
+
+WRONG = [
+    ("quaternion", convention)
+    for convention in independent.CONVENTIONS
+    if convention != "documented"
+] + [("axes", "offset_sign_flipped")]
+
+
+@pytest.mark.parametrize(("kind", "convention"), WRONG)
+def test_calibration_tells_a_wrong_measurement_rule_apart(kind: str, convention: str) -> None:
+    """Readings made by a wrong rule (offset sign flipped, mounting on the other side
+    or transposed, quaternion conjugated, reference on the other side) are not
+    explained by the truth: calibration either finds other parameters or leaves a
+    large error, by TOL["wrong_factor"] times the tolerance of the right rule."""
+    _, readings = truth_readings(60, kind, convention=convention)
+    result = calibrate_quietly(readings, reference=TRUTH.reference)
+    errors = {name: math.degrees(e) for name, e in truth_errors(result).items()}
+    rms = truth_rms_deg(result)
+    ok, detail = recovers_counts_truth(result)
+    assert not ok, detail
+    assert (
+        max(errors.values()) > TOL["wrong_factor"] * TOL["truth_counts_deg"]
+        or rms > TOL["wrong_factor"] * TOL["truth_rms_counts_deg"]
+    ), detail
 
 
 def test_robust_loss_flags_and_survives_outliers() -> None:

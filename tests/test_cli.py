@@ -135,9 +135,12 @@ def test_fk_all_matches_library(capsys: pytest.CaptureFixture[str]) -> None:
     every = spm.forward_kinematics_all(np.radians(THETA_DEG))
     assert out["count"] == int(every.count) == len(out["modes"])
     assert [m["label"] for m in out["modes"]] == every.labels[: out["count"]]
+    assert out["count"] == 8  # the study's input: eight modes, eight distinct labels
+    assert len({m["label"] for m in out["modes"]}) == 8
     assert [m["home"] for m in out["modes"]].count(True) == 1
     for k, mode in enumerate(out["modes"]):
-        assert set(mode) == {"label", "home", "R", "v", "b", "det_a", "residual"}
+        assert set(mode) == {"index", "label", "home", "R", "v", "b", "det_a", "residual"}
+        assert mode["index"] == k
         np.testing.assert_allclose(mode["R"], every.R[k], atol=TOL["json"])
         np.testing.assert_allclose(mode["v"], every.v[k], atol=TOL["json"])
         np.testing.assert_allclose(mode["b"], every.b[k], atol=TOL["json"])
@@ -218,20 +221,39 @@ def test_ik_modes_match_library(capsys: pytest.CaptureFixture[str]) -> None:
         )
 
 
-def test_ik_unreachable_is_an_answer(capsys: pytest.CaptureFixture[str]) -> None:
-    R = matrix_from_rpy(np.radians([0.0, 100.0, 0.0]))
-    with pytest.raises(spm.UnreachableError) as caught:
-        spm.inverse_kinematics(R)
-    out = run_json(capsys, "ik", "--rpy", "0", "100", "0")
-    assert out["reachable"] is False
-    assert out["theta_deg"] is None
-    assert out["failing_leg"] == caught.value.leg
-    assert out["leg_reachable"][caught.value.leg - 1] is False
-    status, text, err = run(capsys, "ik", "--rpy", "0", "100", "0")
-    assert status == 0
-    assert err == ""
-    assert any(line.split() == ["reachable", "false"] for line in text.splitlines())
-    assert any(line.split() == ["failing_leg", str(caught.value.leg)] for line in text.splitlines())
+def test_ik_unreachable_exits_2_naming_every_failing_leg(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    for rpy in (["0", "100", "0"], ["0", "80", "0"]):
+        R = matrix_from_rpy(np.radians([float(x) for x in rpy]))
+        reach = spm.inverse_kinematics(R[None]).leg_reachable[0]
+        failing = [i + 1 for i in range(3) if not reach[i]]
+        assert failing, rpy
+        for extra in ([], ["--json"], ["--all"]):
+            status, text, err = run(capsys, "ik", "--rpy", *rpy, *extra)
+            assert status == 2 and text == ""
+            assert err.startswith("spm: error: ") and err.count("\n") == 1
+            named = "leg " + str(failing[0]) if len(failing) == 1 else "legs "
+            assert named in err
+            for leg in failing:
+                assert str(leg) in err.split("cannot close")[0].split("of design")[1]
+    # 80 deg pitch: legs 2 and 3 both fail, and both are named
+    status, _, err = run(capsys, "ik", "--rpy", "0", "80", "0")
+    assert "legs 2 and 3 cannot close" in err
+
+
+def test_mode_numbers_agree_between_all_and_mode(capsys: pytest.CaptureFixture[str]) -> None:
+    """Text and JSON number the modes as --mode INDEX does (from 0)."""
+    out = run_json(capsys, "ik", "--rpy", "10", "-20", "30", "--all")
+    assert [m["index"] for m in out["modes"]] == list(range(8))
+    status, text, _ = run(capsys, "ik", "--rpy", "10", "-20", "30", "--all")
+    assert status == 0 and "modes[0]:" in text and "modes[7]:" in text
+    assert "modes[8]:" not in text
+    for m in out["modes"]:
+        single = run_json(capsys, "ik", "--rpy", "10", "-20", "30", "--mode", str(m["index"]))
+        assert single["mode"] == m["label"] and single["index"] == m["index"]
+    every = run_json(capsys, "fk", *map(str, COLLIDING_DEG), "--all")
+    assert [m["index"] for m in every["modes"]] == list(range(every["count"]))
 
 
 # --------------------------------------------------------------------------- design
@@ -424,3 +446,49 @@ def test_python_m_spm_pin(tmp_path: Path) -> None:
     assert bad.stderr.startswith("spm: error: ")
     assert bad.stderr.count("\n") == 1
     assert "Traceback" not in bad.stderr
+
+
+# ------------------------------------------------------------------- designs by name
+def test_fk_with_a_preset_name(capsys: pytest.CaptureFixture[str]) -> None:
+    design = spm.SPMDesign.agile_eye()
+    for theta_deg in (THETA_DEG, [10.0, -20.0, 30.0]):
+        out = run_json(capsys, "fk", *map(str, theta_deg), "--design", "agile_eye")
+        assert out["design"] == "agile_eye"
+        fk = spm.forward_kinematics(np.radians(theta_deg), design)
+        assert out["reachable"] is True
+        np.testing.assert_allclose(out["R"], fk.R, atol=TOL["json"])
+    assert run_json(capsys, "fk", "0", "0", "0", "--design", "Agile-Eye")["design"] == "agile_eye"
+    assert run_json(capsys, "fk", "0", "0", "0", "--design", "prototype")["design"] == "prototype"
+
+
+def test_collide_agile_eye_at_home(capsys: pytest.CaptureFixture[str]) -> None:
+    out = run_json(capsys, "collide", "0", "0", "0", "--design", "agile_eye")
+    assert out["design"] == "agile_eye"
+    assert out["collision"] is False
+    assert out["pairs"] == []
+    assert out["min_distance_m"] > 0.01
+
+
+def test_design_name_against_a_file_named_like_it(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A bare preset name is the preset; ./NAME or NAME.toml is the file."""
+    spm.SPMDesign.coaxial(50.0, 75.0, 100.0, name="mine").save(tmp_path / "agile_eye")
+    monkeypatch.chdir(tmp_path)
+    assert run_json(capsys, "fk", "0", "0", "0", "--design", "agile_eye")["design"] == "agile_eye"
+    assert run_json(capsys, "fk", "0", "0", "0", "--design", "./agile_eye")["design"] == "mine"
+
+
+def test_bad_design_name_lists_the_presets(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    status, out, err = run(capsys, "fk", "0", "0", "0", "--design", "agile")
+    assert status == 2
+    assert out == ""
+    assert err.startswith("spm: error: ") and err.count("\n") == 1
+    assert "'agile'" in err and "not a file" in err
+    assert all(name in err for name in spm.SPMDesign.preset_names())
+    status, out, _ = run(capsys, "fk", "-h")
+    assert status == 0
+    assert "NAME|FILE" in out and "agile_eye" in out

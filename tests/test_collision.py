@@ -667,3 +667,21 @@ def test_bad_input(
     assert isinstance(info.value, spm.InputError)
     assert info.value.argument == argument
     assert argument.split(".")[0] in str(info.value)
+
+
+def test_agile_eye_is_free_at_home() -> None:
+    """The Agile Eye preset's links clear each other at home (by name, as the CLI takes
+    it), the proximal links most narrowly."""
+    robot = spm.build_robot("agile_eye")
+    assert robot.design == spm.SPMDesign.agile_eye()
+    home = np.zeros(3)
+    assert robot.collisions(home) == []
+    report = check_input(home, robot)
+    assert report.reachable and not report.collision and report.pairs == ()
+    distances = robot.distances(home)
+    clearance = robot.min_clearance(home)
+    assert clearance == pytest.approx(min(distances.values()), abs=0.0)
+    assert 0.01 < clearance < 0.02  # 15.3 mm: two proximal links
+    assert min(distances, key=distances.__getitem__)[0].startswith("proximal_")
+    assert distances[("distal_1", "distal_2")] > 0.02
+    assert distances[("proximal_1", "platform")] > 0.02

@@ -254,3 +254,106 @@ def test_toml_round_trip_is_exact_over_coaxial_designs(
         assert error.parameter is not None
         assume(False)
     assert spm.SPMDesign.from_toml(design.to_toml()) == design
+
+
+# ------------------------------------------------------------- designs by name
+@pytest.mark.parametrize(
+    ("spec", "name"),
+    [
+        ("prototype", "prototype"),
+        ("agile_eye", "agile_eye"),
+        ("Agile_Eye", "agile_eye"),
+        ("AGILE-EYE", "agile_eye"),
+        ("agile-eye", "agile_eye"),
+        ("PROTOTYPE", "prototype"),
+        (None, "prototype"),
+    ],
+)
+def test_from_spec_names_presets(spec: str | None, name: str) -> None:
+    """A preset name in any case, with - for _, gives the preset; None the prototype."""
+    assert spm.SPMDesign.from_spec(spec) == spm.SPMDesign.preset(name)
+    if spec is not None:
+        assert spm.SPMDesign.preset(spec) == spm.SPMDesign.preset(name)
+    assert spm.SPMDesign.preset_names() == PRESETS
+
+
+def test_from_spec_passes_a_design_through() -> None:
+    design = spm.SPMDesign.coaxial(50.0, 75.0, 100.0)
+    assert spm.SPMDesign.from_spec(design) is design
+
+
+def test_from_spec_loads_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    design = spm.SPMDesign.coaxial(50.0, 75.0, 100.0, name="mine")
+    path = design.save(tmp_path / "mine.toml")
+    assert spm.SPMDesign.from_spec(path) == design  # a Path
+    assert spm.SPMDesign.from_spec(str(path)) == design  # a str
+    # A bare name that is no preset but an existing file is that file.
+    design.save(tmp_path / "mine")
+    monkeypatch.chdir(tmp_path)
+    assert spm.SPMDesign.from_spec("mine") == design
+    assert spm.SPMDesign.from_spec("mine.toml") == design
+
+
+def test_from_spec_a_file_named_like_a_preset(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A bare preset name is the preset even if a file of that name exists; a path with
+    a directory part or a suffix is the file."""
+    mine = spm.SPMDesign.coaxial(50.0, 75.0, 100.0, name="mine")
+    mine.save(tmp_path / "agile_eye")
+    mine.save(tmp_path / "prototype.toml")
+    monkeypatch.chdir(tmp_path)
+    assert spm.SPMDesign.from_spec("agile_eye") == spm.SPMDesign.agile_eye()
+    assert spm.SPMDesign.from_spec(Path("agile_eye")) == spm.SPMDesign.agile_eye()
+    assert spm.SPMDesign.from_spec("./agile_eye") == mine
+    assert spm.SPMDesign.from_spec(str(tmp_path / "agile_eye")) == mine
+    assert spm.SPMDesign.from_spec("prototype") == spm.SPMDesign.prototype()
+    assert spm.SPMDesign.from_spec("prototype.toml") == mine
+
+
+def test_from_spec_bad_name_lists_the_presets(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(spm.DesignError) as info:
+        spm.SPMDesign.from_spec("agile")
+    message = str(info.value)
+    assert "'agile'" in message and "not a file either" in message
+    assert all(name in message for name in PRESETS)
+    assert info.value.parameter == "design"
+    with pytest.raises(spm.FileFormatError, match="cannot read design file"):
+        spm.SPMDesign.from_spec("agile.toml")  # a file name: the file is missing
+    with pytest.raises(spm.DesignError, match="agile_eye"):
+        spm.SPMDesign.preset("agile")
+    with pytest.raises(spm.InputError, match="design") as bad:
+        spm.SPMDesign.from_spec(42)  # type: ignore[arg-type]
+    assert bad.value.argument == "design"
+
+
+def test_kinematics_take_a_preset_name() -> None:
+    """Every function that takes a design takes a preset name as well."""
+    theta = np.radians([10.0, -20.0, 30.0])
+    by_name = spm.inverse_kinematics(np.eye(3), "agile_eye")
+    by_design = spm.inverse_kinematics(np.eye(3), spm.SPMDesign.agile_eye())
+    np.testing.assert_array_equal(by_name.theta, by_design.theta)
+    np.testing.assert_array_equal(
+        spm.jacobian(theta, "Agile-Eye").J, spm.jacobian(theta, spm.SPMDesign.agile_eye()).J
+    )
+    with pytest.raises(spm.DesignError, match="prototype"):
+        spm.jacobian(theta, "no_such_design")
+    with pytest.raises(spm.InputError, match="design"):
+        spm.jacobian(theta, 3.0)  # type: ignore[arg-type]
+
+
+def test_agile_eye_home() -> None:
+    """The Agile Eye's base triad stands 100 deg clockwise of the platform's at home
+    (u_i at azimuth eta_i - 100 deg), with the prototype's link sizes."""
+    d = spm.SPMDesign.agile_eye()
+    azimuth = np.arctan2(d.u[:, 1], d.u[:, 0])
+    expected = np.asarray(d.eta) - np.radians(100.0)
+    np.testing.assert_allclose(
+        np.mod(azimuth - expected + np.pi, 2 * np.pi) - np.pi, 0.0, atol=1e-14
+    )
+    assert d.dimensions == spm.LinkDimensions()
+    # The study's input is reachable in the home assembly mode.
+    assert spm.forward_kinematics(np.radians([60.0, 90.0, 120.0]), d).reachable

@@ -570,9 +570,12 @@ def test_cli_torques(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert math.isclose(max(record["peak_speed_rpm"]), 1.875 * 120 / 360 * 60)
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # too fast for the servo: 141 rpm > 53 rpm
-    assert cli.main(["torques", "--to", "90", "0", "0", "--duration", "0.2"]) == 0
-    text = capsys.readouterr().out
+    # (the report is printed, and the exit status says the servos cannot do it)
+    status = cli.main(["torques", "--to", "90", "0", "0", "--duration", "0.2"])
+    assert status == cli.EXIT_OVER_LIMITS == 1
+    text, err = capsys.readouterr()
     assert "EXCEEDS" in text and "within_limits    false" in text
+    assert err.startswith("spm: warning: EXCEEDS") and err.count("\n") == 1
     # a file of the same motion gives the same torques
     motion = D.Trajectory.minimum_jerk([0.0, 0.0, 0.0], np.radians([60, 90, 120]), 1.0)
     file = motion.save(tmp_path / "motion.csv")

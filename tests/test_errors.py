@@ -183,7 +183,7 @@ def test_bad_working_mode(mode: Any) -> None:
         spm.inverse_kinematics(np.eye(3), PROTOTYPE, mode=mode)
 
 
-@pytest.mark.parametrize("design", ["prototype", 3, {"alpha1": 1.0}])
+@pytest.mark.parametrize("design", [b"prototype", 3, {"alpha1": 1.0}])
 def test_design_argument_must_be_a_design(design: Any) -> None:
     for call in (
         lambda: spm.forward_kinematics(np.zeros(3), design),

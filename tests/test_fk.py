@@ -139,8 +139,22 @@ def test_all_modes_are_solutions_with_consistent_labels(seed: int, name: str) ->
     labels = np.array(every.labels, dtype=object)
     for label, bb, dd in zip(labels[valid][clear], b[clear], det_a[clear], strict=True):
         expected = "".join("+" if x > 0 else "-" for x in bb) + ("/+" if dd > 0 else "/-")
-        assert label == expected
+        assert label.split("#")[0] == expected
     assert np.all(labels[~valid] == "")
+    # Labels are unique per input: the k-th mode sharing signs with earlier slots
+    # carries "#k", and modes sharing signs are ordered by growing platform tilt.
+    for i in range(BATCH):
+        row = [str(x) for x in labels[i][valid[i]]]
+        assert len(set(row)) == len(row), row
+        for k, label in enumerate(row):
+            signs, _, ordinal = label.partition("#")
+            earlier = [j for j in range(k) if row[j].split("#")[0] == signs]
+            assert ordinal == ("" if not earlier else str(len(earlier) + 1)), row
+            for j in earlier:
+                # cos(tilt) of the platform normal: the earlier mode tilts less
+                cos_j, cos_k = every.R[i, j, 2, 2], every.R[i, k, 2, 2]
+                if every.home[i, j] == every.home[i, k]:
+                    assert cos_j >= cos_k - 1e-12, row
     # Home-rule modes fill the first slots; home_index and ambiguous follow.
     n_home = every.home.sum(axis=-1)
     for i in range(BATCH):
@@ -371,3 +385,75 @@ def test_single_input_equals_the_batch(name: str) -> None:
             assert one.residual <= 1e-12
         else:
             assert np.isnan(one.R).all()
+
+
+# ------------------------------------------- early detection of unreachable inputs
+def _fk_without_table(theta: np.ndarray, design: spm.SPMDesign) -> tuple[np.ndarray, np.ndarray]:
+    """The home-mode solve with no early detection (Newton, then the resultant)."""
+    from spm_pin.kinematics import fk as fk_module
+
+    reduced, common = fk_module._torsion_split(theta, design)
+    R, done = fk_module._home_solve(reduced, design, None)
+    if common is not None:
+        R = fk_module.rotation_about(design.u[0], common) @ R
+    return R, done
+
+
+@pytest.mark.parametrize("name", DESIGN_NAMES)
+def test_early_unreachable_changes_no_answer(name: str) -> None:
+    """100,000 uniform inputs: with the certified unreachable-cell table (coaxial
+    designs) reachability and every rotation are those of the full solve."""
+    from spm_pin.kinematics import _reach
+
+    design = get_design(name)
+    theta = random_inputs(np.random.default_rng(2024), 100_000)
+    fk = spm.forward_kinematics(theta, design)
+    R, done = _fk_without_table(theta, design)
+    np.testing.assert_array_equal(fk.reachable, done)
+    np.testing.assert_array_equal(fk.R[done], R[done])
+    if design.is_coaxial:
+        reduced = theta - theta.mean(axis=1, keepdims=True)
+        row, col = _reach.gap_index(reduced)
+        flagged = _reach.unreachable_table(design)[row, col]
+        assert not np.any(flagged & done)
+        assert np.mean(flagged[~done]) > 0.85  # the table decides most unreachable inputs
+    every = spm.forward_kinematics_all(theta[:5_000], design)
+    np.testing.assert_array_equal(np.any(every.home, axis=-1), fk.reachable[:5_000])
+
+
+@pytest.mark.parametrize("name", COAXIAL_NAMES)
+def test_early_unreachable_near_the_boundary(name: str) -> None:
+    """Points 1e-9..1e-3 rad either side of the reachability boundary (bisected along
+    random rays from a reachable to an unreachable input): the same answers as the
+    full solve."""
+    design = get_design(name)
+    rng = np.random.default_rng(7)
+    inside = reachable_inputs(design, rng, 300)
+    outside = random_inputs(rng, 3_000)
+    outside = outside[~_fk_without_table(outside, design)[1]][:300]
+    lo, hi = np.zeros(300), np.ones(300)
+    for _ in range(45):
+        mid = 0.5 * (lo + hi)
+        ok = _fk_without_table(inside + mid[:, None] * (outside - inside), design)[1]
+        lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+    direction = outside - inside
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    edge = inside + lo[:, None] * (outside - inside)
+    steps = np.array([1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3])
+    steps = np.concatenate([-steps, steps])
+    theta = (edge[:, None] + steps[None, :, None] * direction[:, None]).reshape(-1, 3)
+    theta = np.concatenate([theta] * 2)  # >= 4096 items: the table is used
+    fk = spm.forward_kinematics(theta, design)
+    R, done = _fk_without_table(theta, design)
+    np.testing.assert_array_equal(fk.reachable, done)
+    np.testing.assert_array_equal(fk.R[done], R[done])
+    assert 0.2 < np.mean(done) < 0.8  # both sides are sampled
+
+
+def test_early_unreachable_only_for_coaxial_batches() -> None:
+    """Non-coaxial designs and small batches (table not built yet) take the usual path."""
+    from spm_pin.kinematics import fk as fk_module
+
+    theta = np.zeros((10, 3))
+    assert fk_module._maybe_reachable(theta, get_design("general")) is None
+    assert fk_module._maybe_reachable(theta, get_design("agile_eye")) is None

@@ -43,12 +43,15 @@ def test_emulate_prints_the_device_and_stops_on_ctrl_c() -> None:
         assert ready, "the emulator printed nothing"
         first = process.stdout.readline()
         device = first.split()[-1]
-        assert first.startswith("emulating XM540-W150 servos 4 5 at 1000000 bit/s")
+        # The factory default rate unless --baud asks otherwise.
+        assert first.startswith("emulating XM540-W150 servos 4 5 at 57600 bit/s")
         assert device.startswith("/dev/") and Path(device).exists()
         port = sdk.PortHandler(device)
-        assert port.openPort()
+        assert port.openPort()  # at the SDK's default, 1 Mbit/s: the servos hear noise
         try:
             handler = sdk.PacketHandler(2.0)
+            assert handler.ping(port, 5)[1] == sdk.COMM_RX_TIMEOUT
+            assert port.setBaudRate(57_600)
             assert handler.ping(port, 5)[:2] == (1130, sdk.COMM_SUCCESS)
             assert handler.ping(port, 1)[1] == sdk.COMM_RX_TIMEOUT
         finally:

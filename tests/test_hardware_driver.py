@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("dynamixel_sdk")
 
-from _hardware_data import IDS, LATENCY_MS, TRIGGER
+from _hardware_data import BAUD, IDS, LATENCY_MS, TRIGGER, fail_budget
 
 from spm_pin.errors import (
     CommunicationError,
@@ -26,8 +26,9 @@ from spm_pin.hardware.control_table import VELOCITY_UNIT
 pytestmark = pytest.mark.hardware
 pytest_plugins = ["_hardware"]
 
-#: Longest a failing transaction may take: attempts x (timeout + pause), with slack [s].
-FAIL_BUDGET = 3 * (2 * LATENCY_MS + 2 + LATENCY_MS) / 1000 + 0.5
+#: Longest a failing transaction may take: attempts x (timeout + pause), with slack [s]
+#: (the timeout allows for the wire time of the longest reply here, a plain sync read).
+FAIL_BUDGET = fail_budget()
 
 
 def test_identify_and_configure_round_trip(servo_bus: ServoBus, bus: EmulatedBus) -> None:
@@ -216,10 +217,14 @@ def test_servo_errors_and_client_side_rules(servo_bus: ServoBus, bus: EmulatedBu
 
 
 def test_baud_rate_mismatch_and_bad_arguments(bus: EmulatedBus) -> None:
-    with ServoBus(bus.port, IDS, baudrate=57_600, latency_timer_ms=LATENCY_MS) as slow:
-        error, elapsed = timed(slow.identify)
-        assert isinstance(error, CommunicationError) and "57600 bit/s" in str(error)
-        assert elapsed < FAIL_BUDGET
+    # Factory-fresh servos (57600 bit/s, the driver's default too) do not hear a
+    # controller at 1 Mbit/s, as on a real bus: the error names the rate.
+    assert bus.baudrate == BAUD == 57_600 == ServoBus(bus.port).baudrate
+    with ServoBus(bus.port, IDS, baudrate=1_000_000, latency_timer_ms=LATENCY_MS) as fast:
+        error, elapsed = timed(fast.identify)
+        assert isinstance(error, CommunicationError) and "1000000 bit/s" in str(error)
+        assert error.result == -3001 and elapsed < fail_budget(11)
+    assert not [e for e in bus.log() if e.accepted]  # nothing reached a servo
     with pytest.raises(InputError, match="baudrate must be one of"):
         ServoBus(bus.port, baudrate=4_500_000)
     with pytest.raises(InputError, match="ids must be distinct"):
@@ -240,7 +245,7 @@ def test_emulator_gone_is_a_communication_error() -> None:
     """The SDK raises OSError or termios.error when the other end vanishes: the driver
     turns them into CommunicationError."""
     emulated = EmulatedBus((1,)).start()
-    driver = ServoBus(emulated.port, (1,), latency_timer_ms=LATENCY_MS).open()
+    driver = ServoBus(emulated.port, (1,), baudrate=BAUD, latency_timer_ms=LATENCY_MS).open()
     try:
         assert driver.ping(1) == 1130
         emulated.stop()
@@ -250,3 +255,18 @@ def test_emulator_gone_is_a_communication_error() -> None:
     finally:
         driver.close()
         emulated.stop()
+
+
+def test_a_bus_at_another_rate_talks_only_at_that_rate() -> None:
+    """Servos set to 1 Mbit/s (asked for explicitly) answer a controller at 1 Mbit/s
+    and nobody at their factory default, 57600 bit/s."""
+    with EmulatedBus((1,), baudrate=1_000_000) as emulated:
+        assert emulated.baudrate == 1_000_000 and emulated.item(1, "Baud Rate") == 3
+        with ServoBus(
+            emulated.port, (1,), baudrate=1_000_000, latency_timer_ms=LATENCY_MS
+        ) as driver:
+            assert driver.ping(1) == 1130
+        with ServoBus(emulated.port, (1,), latency_timer_ms=LATENCY_MS) as slow:  # 57600
+            error, elapsed = timed(lambda: slow.ping(1))
+            assert isinstance(error, CommunicationError) and "57600 bit/s" in str(error)
+            assert error.servo_ids == (1,) and elapsed < fail_budget(11)

@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("dynamixel_sdk")
 
 import dynamixel_sdk as sdk
-from _hardware_data import IDS, TRIGGER, state_block
+from _hardware_data import BAUD, IDS, TRIGGER, state_block
 
 from spm_pin.errors import InputError
 from spm_pin.hardware import XM540_W150, EmulatedBus, ServoEmulator
@@ -79,6 +79,19 @@ def test_ping_identifies_every_servo_in_id_order() -> None:
     replies = send(emu, BROADCAST_ID, Instruction.PING)
     assert [r.servo_id for r in replies] == [1, 2, 3]
     assert send(emu, 9, Instruction.PING) == []  # nobody has id 9
+
+
+def test_default_baud_rate_is_the_factory_default_and_must_match_the_line() -> None:
+    emu, _ = make()
+    assert [s.baudrate for s in emu.servos.values()] == [57_600] * 3
+    assert read(emu, 1, "Baud Rate") == (0, 1)  # item 1: 57600, as out of the box
+    ping = instruction_packet(1, Instruction.PING)
+    assert emu.receive(ping, line_baudrate=1_000_000) == []  # noise to the servos
+    assert len(emu.receive(ping, line_baudrate=57_600)) == 1
+    fast, _ = make(baudrate=1_000_000)  # asked otherwise
+    assert read(fast, 2, "Baud Rate") == (0, 3)
+    assert fast.receive(ping, line_baudrate=57_600) == []
+    assert len(fast.receive(ping, line_baudrate=1_000_000)) == 1
 
 
 def test_access_rules_of_the_control_table() -> None:
@@ -167,7 +180,7 @@ def test_reg_write_action_reboot_factory_reset_clear() -> None:
     assert send(emu, 2, Instruction.FACTORY_RESET, b"\x02")[0].parameters[0] == 0
     clock.now += 0.1
     assert read(emu, 2, "Return Delay Time") == (0, 250)
-    assert read(emu, 2, "Baud Rate") == (0, 3)
+    assert read(emu, 2, "Baud Rate") == (0, 1)  # 57600, as it was
     # CLEAR: the multi-turn count back within one turn.
     emu.servo(3).set("Present Position", 3 * 4096 + 100)
     (reply,) = send(emu, 3, Instruction.CLEAR, b"\x01\x44\x58\x4c\x22")
@@ -296,7 +309,7 @@ def test_fault_counts_and_bad_arguments() -> None:
 
 
 # ---------------------------------------------------- the real SDK over the pty
-def open_sdk(port: str, baudrate: int = 1_000_000) -> tuple[object, object]:
+def open_sdk(port: str, baudrate: int = BAUD) -> tuple[object, object]:
     handler = sdk.PortHandler(port)
     assert handler.openPort()
     assert handler.setBaudRate(baudrate)
@@ -356,8 +369,8 @@ def test_sdk_pitfalls_on_the_emulated_bus(bus: EmulatedBus) -> None:
         assert group.getData(3, 128, 4) != (TRIGGER["Present Velocity"] & 0xFFFFFFFF)
         assert bus.state(3)["Present Velocity"] == TRIGGER["Present Velocity"]
         assert state_block(**TRIGGER)[12:16] == (-3).to_bytes(4, "little", signed=True)
-        # 4. A baud-rate mismatch is silence.
-        assert port.setBaudRate(57_600)  # type: ignore[attr-defined]
+        # 4. A baud-rate mismatch is silence: 1 Mbit/s to factory-fresh servos.
+        assert port.setBaudRate(1_000_000)  # type: ignore[attr-defined]
         _, result, _ = packets.ping(port, 1)  # type: ignore[attr-defined]
         assert result == sdk.COMM_RX_TIMEOUT
     finally:

@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("dynamixel_sdk")
 
-from _hardware_data import IDS, LATENCY_MS, TOL, fast_config
+from _hardware_data import BAUD, IDS, LATENCY_MS, TOL, fast_config
 
 import spm_pin as spm
 from spm_pin.errors import HardwareError, InputError, ServoAlertError, UnsafeCommandError
@@ -146,7 +146,7 @@ def test_guard_checks_speed_acceleration_and_whole_paths(robot: spm.SPMRobot) ->
 def test_start_holds_where_the_servos_are(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     config = fast_config(bus.port)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         state = sync.start()
@@ -168,7 +168,7 @@ def test_full_move_with_the_model_following(bus: EmulatedBus, robot: spm.SPMRobo
     except ImportError:  # pragma: no cover - the viz extra is part of the test extra
         pass
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot, viewer=viewer) as sync,
     ):
         sync.start()
@@ -198,7 +198,7 @@ def test_full_move_with_the_model_following(bus: EmulatedBus, robot: spm.SPMRobo
 def test_unsafe_goals_never_reach_the_bus(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     config = fast_config(bus.port)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         sync.start()
@@ -229,7 +229,7 @@ def test_start_refuses_a_robot_standing_in_collision(bus: EmulatedBus, robot: sp
     for i, pulses in pulses_of([0.0, 80.0, 0.0]).items():
         bus.set_item(i, "Present Position", pulses)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         with pytest.raises(UnsafeCommandError, match="links collide"):
@@ -243,7 +243,7 @@ def test_start_refuses_a_robot_standing_in_collision(bus: EmulatedBus, robot: sp
 def test_follow_mirrors_a_robot_moved_by_hand(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     config = fast_config(bus.port)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot, update_model=False) as sync,
     ):
         sync.start(torque=False)
@@ -263,7 +263,7 @@ def test_follow_mirrors_a_robot_moved_by_hand(bus: EmulatedBus, robot: spm.SPMRo
 def test_faults_hold_the_goal_then_turn_torque_off(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     config = fast_config(bus.port).replace(max_failures=3)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS, retries=1) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS, retries=1) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         sync.start()
@@ -285,7 +285,7 @@ def test_faults_hold_the_goal_then_turn_torque_off(bus: EmulatedBus, robot: spm.
 def test_a_goal_the_servo_does_not_hold_is_a_fault(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     config = fast_config(bus.port)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         sync.start()
@@ -302,7 +302,7 @@ def test_overload_reboot_restores_turns_and_profile(bus: EmulatedBus, robot: spm
     for i in IDS:
         bus.set_item(i, "Present Position", 30)  # theta = 2.6 deg
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         sync.start()
@@ -335,7 +335,7 @@ def test_start_clears_a_latched_overload(bus: EmulatedBus, robot: spm.SPMRobot) 
     bus.set_item(2, "Torque Enable", 1)
     bus.alert(2, int(HardwareErrorFlag.OVERLOAD))  # left over from an earlier session
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         sync.start()
@@ -344,7 +344,7 @@ def test_start_clears_a_latched_overload(bus: EmulatedBus, robot: spm.SPMRobot) 
         assert [bus.item(i, "Torque Enable") for i in IDS] == [1, 1, 1]
     bus.alert(3, int(HardwareErrorFlag.OVERHEATING))
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
         pytest.raises(ServoAlertError, match="servo 3: overheating"),
     ):
@@ -354,7 +354,7 @@ def test_start_clears_a_latched_overload(bus: EmulatedBus, robot: spm.SPMRobot) 
 def test_overheating_is_never_rebooted(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     config = fast_config(bus.port)
     with (
-        ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         ServoSync(servos, config, robot=robot) as sync,
     ):
         sync.start()
@@ -368,11 +368,11 @@ def test_overheating_is_never_rebooted(bus: EmulatedBus, robot: spm.SPMRobot) ->
 
 def test_loop_arguments_are_checked(bus: EmulatedBus, robot: spm.SPMRobot) -> None:
     with (
-        ServoBus(bus.port, (1, 2, 4), latency_timer_ms=LATENCY_MS) as servos,
+        ServoBus(bus.port, (1, 2, 4), baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
         pytest.raises(InputError, match=r"use \[1, 2, 3\]"),
     ):
         ServoSync(servos, HardwareConfig(), robot=robot)
-    with ServoBus(bus.port, IDS, latency_timer_ms=LATENCY_MS) as servos:
+    with ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos:
         sync = ServoSync(servos, fast_config(bus.port), robot=robot)
         with pytest.raises(HardwareError, match="call start"):
             sync.step(np.zeros(3))

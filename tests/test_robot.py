@@ -648,7 +648,9 @@ def test_bad_link(robot: SPMRobot) -> None:
 
 def test_bad_design() -> None:
     with pytest.raises(spm.InputError, match="design"):
-        spm.build_robot("prototype")  # type: ignore[arg-type]
+        spm.build_robot(42)  # type: ignore[arg-type]
+    with pytest.raises(spm.InputError, match="agile_eye"):  # not a preset, not a file
+        spm.build_robot("nope")
 
 
 @given(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import gc
+import html
 import json
 import math
 import os
@@ -28,6 +29,7 @@ import umsgpack
 
 import spm_pin as spm
 from spm_pin.cli import main
+from spm_pin.collision import check_input
 from spm_pin.model.geometry import LINK_NAMES, link_meshes
 from spm_pin.model.robot import SPMRobot
 from spm_pin.rotations import matrix_from_quaternion
@@ -427,7 +429,8 @@ BAD_DISPLAY: dict[str, tuple[Any, dict[str, Any], type[Exception]]] = {
     "inf q": ([math.inf] + [0.0] * 8, {}, spm.InputError),
     "mode with q": ([0.0] * 9, {"mode": "+++/-"}, spm.InputError),
     "bad mode": ([0.0, 0.0, 0.0], {"mode": "sideways"}, spm.InputError),
-    "unreachable": (np.radians(STUDY_COLLIDING_DEG), {}, spm.UnreachableError),
+    "no home mode": (np.radians(STUDY_COLLIDING_DEG), {"mode": "home"}, spm.UnreachableError),
+    "absent label": (np.radians(STUDY_COLLIDING_DEG), {"mode": "+++/-"}, spm.UnreachableError),
 }
 
 
@@ -457,12 +460,6 @@ BAD_ANIMATE: dict[str, tuple[Any, dict[str, Any], type[Exception], str]] = {
         "repetitions",
     ),
     "start with q": (np.zeros((2, 9)), {"start": np.eye(3)}, spm.InputError, "start"),
-    "unreachable start": (
-        np.radians([STUDY_COLLIDING_DEG] * 2),
-        {},
-        spm.UnreachableError,
-        "",
-    ),
 }
 
 
@@ -753,6 +750,54 @@ def test_cli_show_colliding(capsys: pytest.CaptureFixture[str], tmp_path: Path) 
     assert json.loads(out)["mode"] == label
 
 
+def test_cli_show_study_colliding_input_by_the_rule(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """`spm show 60 90 220 --html out.html`: the real mode nearest to home, named in the
+    output and on the page, its colliding links black (as `spm collide` reports)."""
+    target = tmp_path / "out.html"
+    argv = ["show", *map(str, STUDY_COLLIDING_DEG), "--html", str(target)]
+    status, out, err = run(capsys, *argv, "--json")
+    assert status == 0, err
+    record = json.loads(out)
+    report = check_input(np.radians(STUDY_COLLIDING_DEG))
+    assert record["mode"] == report.mode == spm.select_assembly(np.radians([60, 90, 220])).label
+    assert record["home"] is False and report.mode is not None
+    assert record["colliding"] == [list(pair) for pair in report.pairs]
+    assert ["proximal_2", "proximal_3"] in record["colliding"]
+    page = target.read_text(encoding="utf-8")
+    caption = page.split('<div id="spm-caption">', 1)[1].split("</div>", 1)[0]
+    assert f"assembly mode {report.mode}" in html.unescape(caption)
+    assert "proximal_2-proximal_3" in caption
+    colliding = {
+        c["path"]: c["value"]
+        for c in html_commands(page)
+        if c["type"] == "set_property" and c["property"] == "visible"
+    }
+    for name in ("proximal_2", "proximal_3", "distal_2", "distal_3"):
+        assert colliding[f"{link_path(name)}/colliding"] is True
+        assert colliding[f"{link_path(name)}/free"] is False
+    assert colliding[f"{link_path('proximal_1')}/colliding"] is False
+    status, out, err = run(capsys, *argv)
+    assert status == 0 and report.mode in out
+
+
+def test_display_follows_the_assembly_rule(viz: Visualizer) -> None:
+    theta = np.radians(STUDY_COLLIDING_DEG)
+    chosen = spm.select_assembly(theta)
+    viz.display(theta)
+    assert viz.mode == chosen.label and viz.home is False
+    platform = viz.scene.transform(link_path("platform"))
+    assert platform is not None
+    np.testing.assert_allclose(platform[:3, :3], chosen.R, atol=TOL["analytic"])
+    viz.display(np.radians(DEMO_DEG))
+    assert viz.mode == "+++/-" and viz.home is True
+    viz.display(viz.robot.configuration(np.radians(DEMO_DEG)))
+    assert viz.mode is None
+    motion = viz.animate(np.radians([STUDY_COLLIDING_DEG, [60.0, 90.0, 210.0]]))
+    assert motion.modes[0] == chosen.label
+
+
 def test_cli_animate(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     target = tmp_path / "motion.html"
     argv = ["animate", "--to", *map(str, HOME_COLLIDING_DEG), "--samples", "5", "--html"]
@@ -775,7 +820,8 @@ def test_cli_animate(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None
 @pytest.mark.parametrize(
     "argv",
     [
-        ["show", "60", "90", "220", "--html", "x.html"],  # no home-mode assembly
+        ["show", "60", "90", "220", "--mode", "home", "--html", "x.html"],  # no home mode
+        ["show", *map(str, NO_ASSEMBLY_DEG), "--design", "d.toml", "--html", "x.html"],
         ["show", "0", "0", "0", "--mode", "sideways", "--html", "x.html"],
         ["show", "0", "0", "--html", "x.html"],
         ["animate", "--to", "60", "90", "120"],  # no --html

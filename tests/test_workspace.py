@@ -109,18 +109,13 @@ def test_fields_match_single_point_calls(coarse: WorkspaceMap) -> None:
     assert np.all(np.isnan(f["dexterity"][~fk.reachable]))
     for k in range(0, len(coarse), 2):  # every other point: check_input also measures
         report = check_input(theta[k], robot)
+        # One rule for the assembly mode: the map checks what spm collide checks.
+        found = set(report.pairs)
         if f["reachable"][k]:
-            found = set(report.pairs)
             margin = robot.collisions(theta[k], margin=coarse.settings.margin)
             safe = f["dexterity"][k] >= coarse.settings.min_dexterity and not margin
             assert f["safe"][k] == safe
         else:
-            # only the proximal links are placed without a home-mode assembly
-            found = {
-                p
-                for p in report.pairs
-                if p[0].startswith("proximal") and p[1].startswith("proximal")
-            }
             assert not f["safe"][k]
         mask = sum(1 << LINK_PAIRS.index(p) for p in found)
         assert f["pair_mask"][k] == mask, (k, found)
@@ -279,8 +274,7 @@ def test_cli_workspace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
         ({"samples": 0}, "samples"),
         ({"samples": 10, "seed": -1}, "seed"),
         ({"settings": {"margin": 0.0}}, "settings"),
-        ({"settings": WorkspaceSettings(margin=-1.0)}, "settings.margin"),
-        ({"settings": WorkspaceSettings(min_dexterity=2.0)}, "settings.min_dexterity"),
+        ({"settings": WorkspaceSettings(margin=0.5)}, "settings.margin"),  # > 0.1 m
         ({"settings": WorkspaceSettings(ladder=(0.001,))}, "settings.ladder"),
         ({"executor": object()}, "executor"),
         ({"workers": 0}, "workers"),
@@ -292,6 +286,21 @@ def test_bad_input(kwargs: dict[str, Any], argument: str) -> None:
         workspace_map(progress=False, **kwargs)
     assert info.value.argument == argument
     assert argument.split(".")[-1] in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"margin": -1.0}, "margin"),
+        ({"margin": math.nan}, "margin"),
+        ({"min_dexterity": 2.0}, "min_dexterity"),
+        ({"clearance": "yes"}, "clearance"),
+    ],
+)
+def test_bad_settings(kwargs: dict[str, Any], argument: str) -> None:
+    with pytest.raises(spm.InputError, match=argument) as info:
+        WorkspaceSettings(**kwargs)
+    assert info.value.argument == argument
 
 
 def test_bad_gaps_and_fields(coarse: WorkspaceMap) -> None:

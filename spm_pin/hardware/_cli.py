@@ -277,15 +277,20 @@ def _add_bus_options(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="servo configuration TOML (default: ids 1, 2, 3, zero offsets 2048)",
     )
+    from ..design import SPMDesign
+
     parser.add_argument(
-        "--design", metavar="FILE", help="design TOML file (default: the prototype)"
+        "--design",
+        metavar="NAME|FILE",
+        help=f"a preset ({', '.join(SPMDesign.preset_names())}) or a design TOML file "
+        "(default: the prototype)",
     )
     _add_json_option(parser)
 
 
 def add_servo_parser(commands: Any) -> None:
     """Add ``spm servo`` and its subcommands to the ``spm`` subparsers."""
-    from .control_table import BAUD_RATES
+    from .control_table import BAUD_RATES, XM540_W150
 
     servo = commands.add_parser(
         "servo",
@@ -309,10 +314,11 @@ def add_servo_parser(commands: Any) -> None:
     emulate.add_argument(
         "--baud",
         type=int,
-        default=1_000_000,
+        default=BAUD_RATES[XM540_W150["Baud Rate"].default or 0],
         choices=sorted(set(BAUD_RATES.values()) - {4_500_000}),
         metavar="BPS",
-        help="baud rate of every servo (default 1000000)",
+        help="baud rate of every servo (default 57600, the factory default; open the "
+        "port at the same rate)",
     )
     emulate.add_argument(
         "--firmware", type=int, default=46, help="firmware version (fast sync read from 45)"

@@ -3,7 +3,7 @@
 A configuration file (angles in degrees, as everywhere on disk)::
 
     port = "/dev/ttyUSB0"
-    baudrate = 1000000
+    baudrate = 57600      # the servos' factory default; 1000000 once they are set to it
     latency_timer_ms = 16.0
     rate_hz = 100.0
 
@@ -254,7 +254,8 @@ class HardwareConfig:
 
     Attributes:
         port: Serial device.
-        baudrate: Line rate [bit/s] (every servo's Baud Rate item).
+        baudrate: Line rate [bit/s] (every servo's Baud Rate item; default the
+            XM540-W150's factory default, 57600, which the emulator also uses).
         latency_timer_ms: Latency allowed for in the packet timeout [ms].
         retries: Extra attempts of a failed transaction.
         fast_sync_read: True, False, or None (use it when the firmware has it).
@@ -267,7 +268,7 @@ class HardwareConfig:
     """
 
     port: str = "/dev/ttyUSB0"
-    baudrate: int = 1_000_000
+    baudrate: int = 57_600
     latency_timer_ms: float = 16.0
     retries: int = 2
     fast_sync_read: bool | None = None

@@ -28,9 +28,14 @@ Known defects of dynamixel-sdk 4.1 and what the driver does about them:
 * A failed servo fails a whole GroupSyncRead and ``getData`` then returns 0 for
   every servo: the driver never uses ``getData``; it reads each servo's status
   packet and reports exactly which servos are missing.
-* The packet timeout is 2 x 16 ms + wire time, from a module constant:
+* The packet timeout is 2 x 16 ms + 2 ms + wire time, from a module constant:
   :class:`ServoBus` takes ``latency_timer_ms`` instead (1 ms suits a U2D2 whose FTDI
   latency timer is set to 1 ms).
+* The packet timeout is a wall-clock (``time.time``) deadline checked after a read:
+  a clock step fakes or hides a timeout, and a controller preempted between its last
+  read and the check gives up on a reply that is already waiting (seen on a loaded
+  machine). The driver's port measures the deadline on the monotonic clock and
+  declares it passed only after a read begun past the deadline came back short.
 """
 
 from __future__ import annotations
@@ -50,6 +55,7 @@ from ..errors import CommunicationError, HardwareError, InputError, ServoError
 from .control_table import (
     ACCELERATION_UNIT,
     ALERT_BIT,
+    BAUD_RATES,
     CURRENT_UNIT,
     INSTRUCTION_ERRORS,
     MODEL_NUMBER,
@@ -84,6 +90,9 @@ _CRC_ERROR = 3
 REBOOT_TIMEOUT = 2.0
 #: Baud rates that both the SDK and the servo accept [bit/s].
 SDK_BAUD_RATES = (9_600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
+#: The XM540-W150's factory line rate (Baud Rate item 1) [bit/s]: the default of
+#: :class:`ServoBus`, as of the emulator and of :class:`HardwareConfig`.
+FACTORY_BAUDRATE = BAUD_RATES[XM540_W150["Baud Rate"].default or 0]
 
 
 def load_sdk() -> Any:
@@ -113,12 +122,30 @@ def _port_class() -> type:
 
     class _Port(sdk.PortHandler):  # type: ignore[misc,name-defined]
         latency_ms = 16.0
+        #: Clock when the last read of the port began [ms] (see isPacketTimeout).
+        last_read_time = -math.inf
+
+        def getCurrentTime(self) -> float:  # the SDK's name; it uses the wall clock
+            return time.monotonic() * 1000.0
 
         def setPacketTimeout(self, packet_length: int) -> None:  # the SDK's name
             self.packet_start_time = self.getCurrentTime()
             self.packet_timeout = (
                 self.tx_time_per_byte * packet_length + 2.0 * self.latency_ms + 2.0
             )
+
+        def readPort(self, length: int) -> Any:  # the SDK's name
+            self.last_read_time = self.getCurrentTime()
+            return super().readPort(length)
+
+        def isPacketTimeout(self) -> bool:  # the SDK's name
+            # Expired only when a read that began after the deadline still came back
+            # short: the SDK checks the clock after its read, so a controller preempted
+            # between the two would otherwise give up on a reply already waiting.
+            if self.last_read_time - self.packet_start_time > self.packet_timeout:
+                self.packet_timeout = 0.0
+                return True
+            return False
 
     return _Port
 
@@ -269,7 +296,8 @@ class ServoBus:
     Args:
         port: Serial device, e.g. ``/dev/ttyUSB0`` or the emulated bus's ``/dev/pts/N``.
         ids: Servo ids on the bus (the order of :meth:`sync_read`).
-        baudrate: Line rate [bit/s]; must equal every servo's Baud Rate item.
+        baudrate: Line rate [bit/s]; must equal every servo's Baud Rate item
+            (default: the factory setting, 57,600).
         latency_timer_ms: Latency the packet timeout allows for, twice, plus 2 ms
             and the wire time [ms] (16 for a stock FTDI adapter, 1 after
             ``echo 1 > /sys/bus/usb-serial/devices/ttyUSB0/latency_timer``).
@@ -289,7 +317,7 @@ class ServoBus:
         port: str,
         ids: Sequence[int] = (1, 2, 3),
         *,
-        baudrate: int = 1_000_000,
+        baudrate: int = FACTORY_BAUDRATE,
         latency_timer_ms: float = 16.0,
         retries: int = 2,
         fast_sync_read: bool | None = None,

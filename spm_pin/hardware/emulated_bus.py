@@ -13,8 +13,17 @@ received packets, the servos' state)::
         bus.unplug(2)            # servo 2 leaves the bus
         bus.log()                # every instruction packet received
 
-The emulator drops replies while the line's baud rate (set by the controller on the
-terminal) differs from a servo's Baud Rate item, as a real servo hears only noise.
+The servos answer at the XM540-W150's factory default, 57600 bit/s, unless given
+another ``baudrate``; the emulator drops replies while the line's baud rate (set by
+the controller on the terminal) differs from a servo's Baud Rate item, as a real
+servo hears only noise. So a controller must open the port at the servos' rate
+(``ServoBus(bus.port, baudrate=bus.baudrate)``; the driver's default is the factory
+rate too).
+
+The emulator does not spend the wire time, but it is a process like any other: on a
+machine whose cores are busy, the scheduler can hold a reply back by tens of
+milliseconds. A controller of the emulated bus should allow for
+:data:`LATENCY_TIMER_MS` (``latency_timer_ms``) rather than a real adapter's 1-16 ms.
 """
 
 from __future__ import annotations
@@ -36,14 +45,21 @@ from typing import Any, NamedTuple
 
 from ..errors import HardwareError, InputError
 from .control_table import XM540_W150
-from .emulator import DEFAULT_FIRMWARE, LogEntry, ServoEmulator
+from .emulator import DEFAULT_BAUDRATE, DEFAULT_FIRMWARE, LogEntry, ServoEmulator
 
-__all__ = ["EmulatedBus", "GoalWrite", "open_pty", "serve"]
+__all__ = ["LATENCY_TIMER_MS", "EmulatedBus", "GoalWrite", "open_pty", "serve"]
 
 #: How long :meth:`EmulatedBus.start` waits for the emulator's first line [s].
 START_TIMEOUT = 30.0
 #: How long a control request may take [s].
 CONTROL_TIMEOUT = 10.0
+#: Latency a controller of the emulated bus should allow for in its packet timeout
+#: (``ServoBus(latency_timer_ms=...)``) [ms]. The packet timeout is the wire time
+#: at the line rate plus twice this plus 2 ms, about 0.1 s: on 2 cores busy with 4
+#: other processes the reply of the emulator process came up to ~50 ms after the
+#: request (with 10 ms, 1 in 70 transactions timed out); a silent servo still
+#: costs only a tenth of a second per attempt.
+LATENCY_TIMER_MS = 50.0
 
 _SPEEDS: dict[int, int] = {}
 for _rate in (9600, 57600, 115200, 1000000, 2000000, 3000000, 4000000):
@@ -198,7 +214,7 @@ class _Server:
 def serve(
     ids: Sequence[int] = (1, 2, 3),
     *,
-    baudrate: int = 1_000_000,
+    baudrate: int = DEFAULT_BAUDRATE,
     firmware: int = DEFAULT_FIRMWARE,
     positions: Mapping[int, int] | None = None,
     control_fd: int | None = None,
@@ -211,7 +227,7 @@ def serve(
 
     Args:
         ids: Servo IDs.
-        baudrate: Baud rate of every servo [bit/s].
+        baudrate: Baud rate of every servo [bit/s] (default: the factory default, 57600).
         firmware: Firmware Version of every servo.
         positions: Present Position at power-up by id [pulses].
         control_fd: A connected socket's file descriptor for control requests.
@@ -277,7 +293,8 @@ class EmulatedBus:
 
     Args:
         ids: Servo IDs on the bus.
-        baudrate: Baud rate every servo expects [bit/s].
+        baudrate: Baud rate every servo expects [bit/s] (default: the XM540-W150's
+            factory default, 57600); open the port at this rate.
         firmware: Firmware Version (fast sync read needs >= 45).
         positions: Present Position of each servo at power-up [pulses, 0..4095], by id.
 
@@ -289,7 +306,7 @@ class EmulatedBus:
         self,
         ids: Iterable[int] = (1, 2, 3),
         *,
-        baudrate: int = 1_000_000,
+        baudrate: int = DEFAULT_BAUDRATE,
         firmware: int = DEFAULT_FIRMWARE,
         positions: Mapping[int, int] | None = None,
     ) -> None:

@@ -71,6 +71,7 @@ from .protocol import (
 )
 
 __all__ = [
+    "DEFAULT_BAUDRATE",
     "DEFAULT_FIRMWARE",
     "EmulatedServo",
     "LogEntry",
@@ -80,6 +81,9 @@ __all__ = [
 
 #: Firmware version reported by emulated servos (fast sync read needs >= 45).
 DEFAULT_FIRMWARE = 46
+#: Line rate of an emulated servo unless asked otherwise [bit/s]: the XM540-W150's
+#: factory default (Baud Rate item 1), the rate a servo out of the box answers at.
+DEFAULT_BAUDRATE = BAUD_RATES[XM540_W150["Baud Rate"].default or 0]
 #: Time a servo stays silent after REBOOT or FACTORY_RESET [s].
 BOOT_TIME = 0.05
 #: Integration step of the motion [s].
@@ -167,7 +171,8 @@ class EmulatedServo:
 
     Args:
         servo_id: ID (1..252).
-        baudrate: Line rate the servo expects [bit/s], one of the Baud Rate values.
+        baudrate: Line rate the servo expects [bit/s], one of the Baud Rate values
+            (default: the factory default, 57600).
         firmware: Firmware Version item.
         position: Present Position at power-up [pulses], in [0, 4096).
         now: Clock at power-up [s].
@@ -177,7 +182,7 @@ class EmulatedServo:
         self,
         servo_id: int,
         *,
-        baudrate: int = 1_000_000,
+        baudrate: int = DEFAULT_BAUDRATE,
         firmware: int = DEFAULT_FIRMWARE,
         position: int = 2048,
         now: float = 0.0,
@@ -463,8 +468,9 @@ class ServoEmulator:
 
     Args:
         ids: Servo IDs on the bus.
-        baudrate: Baud rate every servo expects [bit/s] (the real default is 57600;
-            1 Mbps here, the usual setting for a 3-servo robot).
+        baudrate: Baud rate every servo expects [bit/s] (default: the factory
+            default, 57600, as out of the box; pass 1_000_000 for the rate a 3-servo
+            robot is usually set to). A controller at another rate gets no reply.
         firmware: Firmware Version of every servo (fast sync read needs >= 45).
         positions: Present Position of each servo at power-up [pulses, 0..4095]
             (default 2048, the middle of the turn).
@@ -476,7 +482,7 @@ class ServoEmulator:
         self,
         ids: Iterable[int] = (1, 2, 3),
         *,
-        baudrate: int = 1_000_000,
+        baudrate: int = DEFAULT_BAUDRATE,
         firmware: int = DEFAULT_FIRMWARE,
         positions: Mapping[int, int] | None = None,
         clock: Callable[[], float] = time.monotonic,

@@ -1,5 +1,6 @@
 """Analytic kinematics of 3-RRR spherical parallel manipulators (numpy only)."""
 
+from .assembly import Assembly, select_assembly
 from .fk import FKAllResult, FKResult, forward_kinematics, forward_kinematics_all
 from .ik import (
     WORKING_MODE_LABELS,
@@ -13,6 +14,7 @@ from .tracking import TrackResult, track
 
 __all__ = [
     "WORKING_MODE_LABELS",
+    "Assembly",
     "FKAllResult",
     "FKResult",
     "IKAllResult",
@@ -24,5 +26,6 @@ __all__ = [
     "inverse_kinematics",
     "inverse_kinematics_all",
     "jacobian",
+    "select_assembly",
     "track",
 ]

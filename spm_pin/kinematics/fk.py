@@ -27,6 +27,18 @@ solution that satisfies the sign rule; items where that fails go through the ful
 resultant solve. Where a design admits several sign-rule modes (never seen for the
 prototype), pass ``reference`` to choose by continuity, or use
 :func:`forward_kinematics_all` or :func:`spm_pin.kinematics.track`.
+
+Unreachable inputs are detected early for coaxial designs (:mod:`._reach`): whether
+an input has a home-mode assembly depends only on its gaps (d_1, d_2), and a table of
+the gap torus marks the cells where no input can have one, proven by branch-and-bound
+with Lipschitz bounds on the two closure equations, b_33 and det A (margin 1e-9, far
+above the solver's 1e-12 acceptance). Inputs in those cells return unreachable at
+once; the others take the path above, so answers do not change. Measured alternatives:
+pairwise cone conditions (only the sign rule without det A: they leave agile-eye-like
+designs, whose mirror modes keep every b_ii > 0, entirely undecided and reject 57 % of
+the prototype's unreachable inputs) and a per-input branch-and-bound (over 100 us per
+input, slower than the resultant); the table decides 92 % of the prototype's
+unreachable uniform inputs for one lookup each. Non-coaxial designs keep the usual path.
 """
 
 from __future__ import annotations
@@ -40,6 +52,7 @@ import numpy.typing as npt
 
 from ..design import SPMDesign
 from ..errors import InputError
+from . import _reach
 from ._common import (
     BoolArray,
     FloatArray,
@@ -80,6 +93,9 @@ _NEWTON_STEPS_FAST = 3
 #: Residual of the two equations regarded as rounding level after polishing.
 _POLISHED = 1e-14
 _POLISH_EXTRA = 5
+#: Batches at least this large build the unreachable-cell table of a coaxial design
+#: (about a second, once per design and process); smaller ones use it once built.
+_TABLE_MIN_BATCH = 4096
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,8 +124,8 @@ class FKResult:
 class FKAllResult:
     """Every real assembly mode, padded to 8 slots along axis -3 (or -1 for flags).
 
-    Slots are sorted: home-rule modes first, then by label. Unused slots have
-    ``valid`` False and NaN arrays.
+    Slots are sorted: home-rule modes first, then by label (see :attr:`labels`).
+    Unused slots have ``valid`` False and NaN arrays.
 
     Attributes:
         theta: (..., 3) input angles [rad].
@@ -137,7 +153,14 @@ class FKAllResult:
 
     @property
     def labels(self) -> list[object]:
-        """Nested lists (batch shape, 8) of labels like ``"+++/-"`` ('' for unused slots)."""
+        """Nested lists (batch shape, 8) of unique labels ('' for unused slots).
+
+        A label is the signs of b_11, b_22, b_33 and det A, e.g. ``"+++/-"``. Where
+        several modes of one input share these signs, the first keeps the bare label
+        and the k-th is suffixed ``#k`` (``"-+-/-#2"``), in slot order: modes sharing
+        their signs are ordered by the tilt of the platform (smallest first), then by
+        the cone angles of v_1 and v_2, so the labels of an input are unique by
+        construction."""
         return _labels(self.b, self.det_a, self.valid)
 
     @property
@@ -430,7 +453,7 @@ def _solve_all_flat(theta: FloatArray, design: SPMDesign, *, home_only: bool = F
             & keep[:-lag]
         )
         keep &= ~dup
-    item, p1, p2 = item[keep], p1[keep], p2[keep]
+    item, p1, p2, p1w, p2w = item[keep], p1[keep], p2[keep], p1w[keep], p2w[keep]
     R = _platform(legs.V1[item], legs.V2[item], p1, p2, design)
     w_item = legs.w[item]
     _, b, det_a = _signs(R, w_item, design)
@@ -438,10 +461,14 @@ def _solve_all_flat(theta: FloatArray, design: SPMDesign, *, home_only: bool = F
     home = satisfies_home_rule(b, det_a, design)
     if home_only:
         item, R, b, det_a, residual = item[home], R[home], b[home], det_a[home], residual[home]
+        p1w, p2w = p1w[home], p2w[home]
         home = home[home]
-    # Order per item: home-rule modes first, then by the label code.
-    code = np.sum((b < 0) * np.array([1, 2, 4]), axis=-1) + 8 * (det_a > 0)
-    order = np.lexsort((code, ~home, item))
+    # Order per item: home-rule modes first, then by the sign code of the label, then
+    # (modes sharing their signs) by the tilt of the platform from its home normal,
+    # then by (phi_1, phi_2): a strict order of distinct solutions.
+    code = np.sum(~(b > 0) * np.array([1, 2, 4]), axis=-1) + 8 * (det_a > 0)  # as the labels
+    normal_z = R[:, 2, 2]  # cos(tilt): the common turn of coaxial inputs was removed
+    order = np.lexsort((p2w, p1w, -normal_z, code, ~home, item))
     item = item[order]
     slot_of = np.arange(item.shape[0]) - np.searchsorted(item, item)
     fits = slot_of < MAX_ASSEMBLY_MODES
@@ -466,20 +493,41 @@ def _angle_diff(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.pi - np.abs(np.mod(a - b, 2 * np.pi) - np.pi)
 
 
+def sign_label(b: npt.ArrayLike, det_a: float) -> str:
+    """The sign part of an assembly-mode label: signs of b_11, b_22, b_33, then of
+    det A, e.g. ``"+++/-"`` (a value > 0 is ``+``)."""
+    signs = np.asarray(b, dtype=float).ravel()
+    return "".join("+" if x > 0 else "-" for x in signs) + ("/+" if det_a > 0 else "/-")
+
+
+#: Sign labels by sign code (bit i set: b_(i+1)(i+1) <= 0; bit 3 set: det A > 0).
+_SIGN_LABELS = np.array(
+    [
+        "".join("-" if (code >> i) & 1 else "+" for i in range(3)) + ("/+" if code & 8 else "/-")
+        for code in range(16)
+    ],
+    dtype=object,
+)
+
+
+def label_array(b: FloatArray, det_a: FloatArray, valid: BoolArray) -> npt.NDArray[np.object_]:
+    """Unique labels of the slots, an object array of the shape of ``valid``: the sign
+    label, and for the k-th (k >= 2) mode of an input whose signs repeat an earlier
+    slot's, the suffix ``#k``; ``""`` for unused slots."""
+    code = np.sum((~(b > 0)) * np.array([1, 2, 4]), axis=-1) + 8 * (det_a > 0)
+    code = np.where(valid, code, -1)
+    earlier = np.tril(np.ones((MAX_ASSEMBLY_MODES, MAX_ASSEMBLY_MODES), dtype=bool), -1)
+    same = (code[..., :, None] == code[..., None, :]) & valid[..., None, :] & earlier
+    ordinal = np.sum(same, axis=-1) + 1
+    labels = np.where(valid, _SIGN_LABELS[np.clip(code, 0, 15)], "").astype(object)
+    for index in zip(*np.nonzero(valid & (ordinal > 1)), strict=True):
+        labels[index] = f"{labels[index]}#{ordinal[index]}"
+    result: npt.NDArray[np.object_] = labels
+    return result
+
+
 def _labels(b: FloatArray, det_a: FloatArray, valid: BoolArray) -> list[object]:
-    flat_b = b.reshape(-1, 3)
-    flat_det = det_a.reshape(-1)
-    flat_valid = valid.reshape(-1)
-    labels = [
-        (
-            "".join("+" if x > 0 else "-" for x in flat_b[i]) + ("/+" if flat_det[i] > 0 else "/-")
-            if flat_valid[i]
-            else ""
-        )
-        for i in range(flat_valid.shape[0])
-    ]
-    array = np.array(labels, dtype=object).reshape(valid.shape)
-    result: list[object] = array.tolist()
+    result: list[object] = label_array(b, det_a, valid).tolist()
     return result
 
 
@@ -580,34 +628,15 @@ def forward_kinematics(
     local_ref = None
     if ref_flat is not None:
         local_ref = ref_flat if turn is None else np.swapaxes(turn, -1, -2) @ ref_flat
-    single = None
-    if local_ref is None and reduced.shape[0] == 1:  # one input: the float fast path
-        single = home_rotation(
-            reduced[0].tolist(),
-            design,
-            _NEWTON_STEPS_FAST,
-            _POLISH_EXTRA,
-            _POLISHED,
-            RESIDUAL_TOL,
-            _SIGN_TOL,
-        )
-    if single is not None:
-        R, done = np.array(single)[None], np.ones(1, dtype=bool)
-    else:
-        R, done = _home_newton(reduced, design, local_ref)
-    if not np.all(done):
-        rest = np.nonzero(~done)[0]
-        out = _solve_all_flat(reduced[rest], design, home_only=True)
-        home = out.home
-        if local_ref is None:
-            pick = np.argmax(home, axis=1)
-        else:
-            dist = np.linalg.norm(out.R - local_ref[rest][:, None], axis=(-2, -1))
-            pick = np.argmin(np.where(home, dist, np.inf), axis=1)
-        found = np.any(home, axis=1)
-        chosen = out.R[np.arange(rest.shape[0]), pick]
-        R[rest] = np.where(found[:, None, None], chosen, np.nan)
-        done[rest] = found
+    todo = _maybe_reachable(reduced, design)
+    if todo is None:
+        R, done = _home_solve(reduced, design, local_ref)
+    else:  # inputs in certified-unreachable gap cells skip the solve
+        R = np.full((reduced.shape[0], 3, 3), np.nan)
+        done = np.zeros(reduced.shape[0], dtype=bool)
+        if todo.size:
+            sub_ref = None if local_ref is None else local_ref[todo]
+            R[todo], done[todo] = _home_solve(reduced[todo], design, sub_ref)
     if turn is not None:
         R = turn @ R
     w = proximal_axes(flat, design)
@@ -688,6 +717,61 @@ def _certify(
     R = _platform(legs.V1, legs.V2, phi1, phi2, design)
     _, b, det_a = _signs(R, legs.w, design)
     return R, (res <= RESIDUAL_TOL) & satisfies_home_rule(b, det_a, design)
+
+
+def _home_solve(
+    reduced: FloatArray, design: SPMDesign, local_ref: FloatArray | None
+) -> tuple[FloatArray, BoolArray]:
+    """Home mode of reduced inputs (n, 3): R (n, 3, 3) (NaN where none) and which exist.
+
+    One input: the float fast path; otherwise Newton (:func:`_home_newton`); items not
+    certified there go through the home-only resultant solve.
+    """
+    single = None
+    if local_ref is None and reduced.shape[0] == 1:  # one input: the float fast path
+        single = home_rotation(
+            reduced[0].tolist(),
+            design,
+            _NEWTON_STEPS_FAST,
+            _POLISH_EXTRA,
+            _POLISHED,
+            RESIDUAL_TOL,
+            _SIGN_TOL,
+        )
+    if single is not None:
+        R, done = np.array(single)[None], np.ones(1, dtype=bool)
+    else:
+        R, done = _home_newton(reduced, design, local_ref)
+    if not np.all(done):
+        rest = np.nonzero(~done)[0]
+        out = _solve_all_flat(reduced[rest], design, home_only=True)
+        home = out.home
+        if local_ref is None:
+            pick = np.argmax(home, axis=1)
+        else:
+            dist = np.linalg.norm(out.R - local_ref[rest][:, None], axis=(-2, -1))
+            pick = np.argmin(np.where(home, dist, np.inf), axis=1)
+        found = np.any(home, axis=1)
+        chosen = out.R[np.arange(rest.shape[0]), pick]
+        R[rest] = np.where(found[:, None, None], chosen, np.nan)
+        done[rest] = found
+    return R, done
+
+
+def _maybe_reachable(reduced: FloatArray, design: SPMDesign) -> npt.NDArray[np.intp] | None:
+    """Indices of the reduced inputs not in a certified-unreachable gap cell, or None
+    when the table does not apply (non-coaxial design, or a small batch before the
+    table of this design is built); see :mod:`._reach`."""
+    if not design.is_coaxial:
+        return None
+    table = _reach.cached_table(design)
+    if table is None:
+        if reduced.shape[0] < _TABLE_MIN_BATCH:
+            return None
+        table = _reach.unreachable_table(design)
+    row, col = _reach.gap_index(reduced)
+    result: npt.NDArray[np.intp] = np.nonzero(~table[row, col])[0]
+    return result
 
 
 def _cone_angle(V: FloatArray, v: FloatArray) -> FloatArray:

@@ -100,6 +100,15 @@ def _wrap(angle: FloatArray) -> FloatArray:
 
 def _near(theta: FloatArray, theta_near: FloatArray) -> FloatArray:
     """The 2 pi k shift of each angle nearest to ``theta_near``."""
+    try:
+        np.broadcast_shapes(theta.shape, theta_near.shape)
+    except ValueError as exc:
+        raise InputError(
+            f"theta_near must broadcast to the shape {theta.shape} of the solutions, got "
+            f"shape {theta_near.shape}",
+            argument="theta_near",
+            value=theta_near,
+        ) from exc
     return theta_near + _wrap(theta - theta_near)
 
 
@@ -118,7 +127,7 @@ def _solve_legs(
 
 def inverse_kinematics(
     R: npt.ArrayLike,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     mode: int | str = 0,
     theta_near: npt.ArrayLike | None = None,
@@ -172,7 +181,7 @@ def inverse_kinematics(
 
 def inverse_kinematics_all(
     R: npt.ArrayLike,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     theta_near: npt.ArrayLike | None = None,
 ) -> IKAllResult:

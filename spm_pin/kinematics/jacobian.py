@@ -80,7 +80,7 @@ class JacobianResult:
 
 def jacobian(
     theta: npt.ArrayLike,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     R: npt.ArrayLike | None = None,
     tol: float = SINGULAR_TOL,

@@ -94,7 +94,7 @@ def _yaw(R: FloatArray) -> float:
 
 def track(
     theta_path: npt.ArrayLike,
-    design: SPMDesign | None = None,
+    design: SPMDesign | str | None = None,
     *,
     start: npt.ArrayLike | None = None,
     max_depth: int = 10,

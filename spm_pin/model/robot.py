@@ -38,8 +38,8 @@ import pinocchio as pin
 
 from ..design import SPMDesign
 from ..errors import ConvergenceError, InputError, UnreachableError
-from ..kinematics import forward_kinematics, forward_kinematics_all
-from ..kinematics._common import as_rotation, as_theta, check_design
+from ..kinematics import forward_kinematics, forward_kinematics_all, select_assembly
+from ..kinematics._common import as_rotation, as_theta, check_design, require_angles
 from .geometry import LINK_NAMES, LinkInertia, link_inertias, link_meshes
 
 if TYPE_CHECKING:
@@ -159,7 +159,7 @@ class SPMRobot:
         end_frames: Frame ids of :data:`END_BODIES` (the platform as seen by legs 1, 2, 3).
     """
 
-    def __init__(self, design: SPMDesign | None = None) -> None:
+    def __init__(self, design: SPMDesign | str | None = None) -> None:
         """Build the model; prefer :func:`build_robot`.
 
         Args:
@@ -314,8 +314,12 @@ class SPMRobot:
         Args:
             theta: Input angles [rad], shape (3,) or (..., 3).
             mode: ``"home"`` for the home assembly mode
-                (:func:`~spm_pin.forward_kinematics`), or an assembly-mode label of
-                :func:`~spm_pin.forward_kinematics_all` such as ``"+++/-"``.
+                (:func:`~spm_pin.forward_kinematics`); ``"nearest"`` for the rule
+                that viewers and collision reports follow
+                (:func:`~spm_pin.select_assembly`: the home mode where it exists,
+                else the real mode nearest to it); or an assembly-mode label of
+                :func:`~spm_pin.forward_kinematics_all` such as ``"+++/-"`` or
+                ``"-+-/-#2"``.
             reference: Optional platform rotation(s) (..., 3, 3) near the wanted
                 solution; chooses by continuity where several modes qualify.
 
@@ -331,9 +335,17 @@ class SPMRobot:
         """
         theta_in = as_theta(theta)
         R = self._platform_rotation(theta_in, mode, reference)
+        return self._closed_configuration(theta_in, R)
+
+    def _closed_configuration(self, theta: FloatArray, R: FloatArray) -> FloatArray:
+        """q at checked inputs theta (..., 3) and platform rotations R (..., 3, 3) of a
+        solution, its closure checked (ConvergenceError above CLOSURE_TOL)."""
+        theta_in = theta
         q = self._configuration_from_rotation(theta_in, R)
         flat = q.reshape(-1, 9)
         residuals = np.array([self._closure_error(item) for item in flat])
+        if residuals.size == 0:  # an empty batch: an empty q (0, 9)
+            return q
         worst = int(np.argmax(residuals))
         if not residuals[worst] <= CLOSURE_TOL:
             raise ConvergenceError(
@@ -350,18 +362,30 @@ class SPMRobot:
         shape = theta.shape[:-1]
         if not isinstance(mode, str):
             raise InputError(
-                f"mode must be 'home' or an assembly-mode label like '+++/-', got {mode!r}",
+                f"mode must be 'home', 'nearest' or an assembly-mode label like '+++/-', "
+                f"got {mode!r}",
                 argument="mode",
                 value=mode,
             )
         if mode == "home":
             fk = forward_kinematics(theta, self.design, reference=reference)
             reachable, R = fk.reachable, fk.R
+        elif mode == "nearest":
+            if reference is not None:
+                raise InputError(
+                    "reference applies to mode 'home' or a mode label, not to 'nearest'",
+                    argument="reference",
+                    value=reference,
+                )
+            chosen = select_assembly(theta, self.design)
+            reachable, R = chosen.exists, chosen.R
         else:
             if not _is_mode_label(mode):
                 raise InputError(
-                    f"mode must be 'home' or an assembly-mode label of forward_kinematics_all "
-                    f"(three signs of b_ii, '/', the sign of det A, e.g. '+++/-'), got {mode!r}",
+                    f"mode must be 'home', 'nearest' or an assembly-mode label of "
+                    f"forward_kinematics_all (three signs of b_ii, '/', the sign of det A, "
+                    f"then '#k' for the k-th mode with those signs: e.g. '+++/-', "
+                    f"'-+-/-#2'), got {mode!r}",
                     argument="mode",
                     value=mode,
                 )
@@ -421,6 +445,8 @@ class SPMRobot:
         chi = np.arctan2(sin_chi, cos_chi)
         q = np.stack([theta, psi, chi], axis=-1).reshape(*theta.shape[:-1], 9)
         fit = np.abs(M - _rotations(v0, chi)).max(axis=(-3, -2, -1))
+        if fit.size == 0:  # an empty batch: an empty q (0, 9)
+            return q
         worst = np.unravel_index(int(np.argmax(fit)), fit.shape) if fit.ndim else ()
         if not fit[worst] <= CLOSURE_TOL:
             raise ConvergenceError(
@@ -435,7 +461,7 @@ class SPMRobot:
     def _check_q(self, q: npt.ArrayLike, batch: bool = True) -> FloatArray:
         try:
             array = np.asarray(q, dtype=float)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(
                 f"q must be numbers of shape (9,) [rad], got {q!r}", argument="q", value=q
             ) from exc
@@ -447,8 +473,7 @@ class SPMRobot:
                 argument="q",
                 value=q,
             )
-        if not np.all(np.isfinite(array)):
-            raise InputError("q must be finite, got NaN or inf", argument="q", value=q)
+        require_angles(array, "q", q)
         return array
 
     def _closure_error(self, q: FloatArray) -> float:
@@ -591,15 +616,17 @@ class SPMRobot:
 
 
 def _is_mode_label(mode: str) -> bool:
+    signs, _, ordinal = mode.partition("#")
     return (
-        len(mode) == 5
-        and mode[3] == "/"
-        and all(sign in "+-" for sign in mode[:3])
-        and mode[4] in "+-"
+        len(signs) == 5
+        and signs[3] == "/"
+        and all(sign in "+-" for sign in signs[:3])
+        and signs[4] in "+-"
+        and (mode == signs or (ordinal.isdigit() and ordinal.isascii() and int(ordinal) >= 2))
     )
 
 
-def build_robot(design: SPMDesign | None = None) -> SPMRobot:
+def build_robot(design: SPMDesign | str | None = None) -> SPMRobot:
     """The SPM as a Pinocchio model with geometry and loop closures.
 
     Args:

@@ -199,16 +199,26 @@ class Scene:
         lowered: dict[str, Any] = umsgpack.unpackb(node.object)["object"]
         return lowered
 
-    def static_html(self, title: str = "spm-pin") -> str:
+    def static_html(self, title: str = "spm-pin", caption: str | None = None) -> str:
         """One self-contained HTML page showing the scene (and playing its animation).
 
         The page needs no server and no network: meshcat's viewer is inlined and the
         scene follows as base64 msgpack commands, decoded in order when the page loads.
+        A ``caption``, when given, is a line of text at the bottom left of the page
+        (element id ``spm-caption``).
         """
         payload = json.dumps(
             [base64.b64encode(data).decode("ascii") for _, _, data in self.commands()]
         )
-        return _PAGE.format(title=html.escape(title), viewer=viewer_script(), commands=payload)
+        caption_html = (
+            "" if caption is None else f'<div id="spm-caption">{html.escape(caption)}</div>\n'
+        )
+        return _PAGE.format(
+            title=html.escape(title),
+            caption=caption_html,
+            viewer=viewer_script(),
+            commands=payload,
+        )
 
 
 _PAGE = """<!DOCTYPE html>
@@ -219,11 +229,15 @@ _PAGE = """<!DOCTYPE html>
 <style>
 body {{ margin: 0; overflow: hidden; }}
 #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+#spm-caption {{ position: absolute; left: 8px; bottom: 8px; max-width: 70vw;
+  padding: 4px 8px; font: 13px/1.4 sans-serif; color: #222;
+  background: rgba(255, 255, 255, 0.85); border-radius: 3px; pointer-events: none;
+  z-index: 10; }}
 </style>
 </head>
 <body>
 <div id="meshcat-pane"></div>
-<script>
+{caption}<script>
 {viewer}
 </script>
 <script>

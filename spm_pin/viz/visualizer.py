@@ -33,6 +33,7 @@ import pinocchio as pin
 
 from ..errors import InputError, UnreachableError
 from ..kinematics import track
+from ..kinematics.assembly import home_mode_label, select_assembly
 from ..model.geometry import LINK_NAMES, link_meshes
 from ..model.robot import SPMRobot, build_robot
 from ._scene import Scene
@@ -150,11 +151,14 @@ class RobotAnimation:
         times: Time of each sample in the animation [s], shape (N,).
         collisions: Colliding link pairs at each sample (empty lists when collision
             checking is off).
+        modes: Assembly-mode label of each sample (labels of
+            :func:`~spm_pin.forward_kinematics_all`; None for configurations q).
     """
 
     q: FloatArray
     times: FloatArray
     collisions: list[list[LinkPair]]
+    modes: list[str | None] = dataclasses.field(default_factory=list)
 
     @property
     def colliding_samples(self) -> list[int]:
@@ -223,6 +227,9 @@ class Visualizer:
         self._server: MeshcatServer | None = None
         self._colliding: frozenset[str] = frozenset()
         self._animated = False
+        self._mode: str | None = None
+        self._home = False
+        self._caption: str | None = None
         meshes = link_meshes(robot.design)
         # vertices split along sharp edges, so the viewer shades flat faces flat
         self._meshes = {name: mesh.smooth_shaded for name, mesh in meshes.items()}
@@ -376,7 +383,9 @@ class Visualizer:
         scene.set_property(_CAMERA, "view", view)
 
     # ------------------------------------------------------------------------ poses
-    def _configuration(self, x: npt.ArrayLike, mode: str) -> FloatArray:
+    def _configuration(self, x: npt.ArrayLike, mode: str) -> tuple[FloatArray, str | None, bool]:
+        """q of ``x``, the label of its assembly mode (None for a given q) and whether
+        that is the home mode."""
         try:
             array = np.asarray(x, dtype=float)
         except (TypeError, ValueError) as exc:
@@ -386,9 +395,22 @@ class Visualizer:
                 value=x,
             ) from exc
         if array.shape == (3,):
-            return self.robot.configuration(array, mode)
+            if mode == "nearest":
+                chosen = select_assembly(array, self.robot.design)
+                if not bool(chosen.exists):
+                    raise UnreachableError(
+                        f"theta = {np.degrees(array).round(6).tolist()} deg has no real "
+                        "assembly mode: the platform cannot be placed",
+                        value=array,
+                    )
+                q = self.robot._closed_configuration(chosen.theta, chosen.R)
+                return q, str(chosen.label), bool(chosen.home)
+            q = self.robot.configuration(array, mode)
+            if mode == "home":
+                return q, home_mode_label(self.robot.design), True
+            return q, mode, False
         if array.shape == (self.robot.model.nq,):
-            if mode != "home":
+            if mode not in ("home", "nearest"):
                 raise InputError(
                     f"mode applies to input angles theta (3,), not to a configuration q; "
                     f"got mode={mode!r} with q",
@@ -397,7 +419,7 @@ class Visualizer:
                 )
             if not np.all(np.isfinite(array)):
                 raise InputError("q must be finite, got NaN or inf", argument="x", value=x)
-            return array
+            return array, None, False
         raise InputError(
             f"x must be input angles theta (3,) or a configuration q (9,) [rad], "
             f"got shape {array.shape}",
@@ -435,16 +457,19 @@ class Visualizer:
         self._q = q.copy()  # q may be the caller's array (or a row of an animation's)
         return pairs
 
-    def display(self, x: npt.ArrayLike, *, mode: str = "home") -> list[LinkPair]:
+    def display(self, x: npt.ArrayLike, *, mode: str = "nearest") -> list[LinkPair]:
         """Show the robot at input angles theta or at a joint configuration q.
 
         Links that collide turn black, and back to their colour when free. Stops an
-        animation if one is loaded.
+        animation if one is loaded. :attr:`mode` names the assembly mode shown, and
+        the saved page (:meth:`save_html`) says it in its caption.
 
         Args:
             x: Input angles theta [rad], shape (3,), or a joint configuration q [rad],
                 shape (9,) (joint order of :data:`~spm_pin.model.robot.JOINT_NAMES`).
-            mode: Assembly mode for theta: ``"home"`` or a label of
+            mode: Assembly mode for theta: ``"nearest"`` (the library's rule,
+                :func:`~spm_pin.select_assembly`: the home mode where it exists, else
+                the real mode nearest to it), ``"home"``, or a label of
                 :func:`~spm_pin.forward_kinematics_all` such as ``"+-+/+"``.
 
         Returns:
@@ -455,11 +480,25 @@ class Visualizer:
             InputError: x is neither (3,) nor (9,), not finite, or a bad mode.
             UnreachableError: no assembly of theta in that mode.
         """
-        q = self._configuration(x, mode)
+        q, label, home = self._configuration(x, mode)
         if self._animated:
             self.scene.set_animation([], play=False, repetitions=1)
             self._animated = False
-        return self._show(q)
+        pairs = self._show(q)
+        self._mode, self._home = label, home
+        self._caption = None if label is None else _pose_caption(self.robot, q, label, home, pairs)
+        return pairs
+
+    @property
+    def mode(self) -> str | None:
+        """Label of the assembly mode shown (None when a configuration q was given or
+        an animation is loaded)."""
+        return self._mode
+
+    @property
+    def home(self) -> bool:
+        """The assembly mode shown (:attr:`mode`) is the home assembly mode."""
+        return self._home
 
     @property
     def q(self) -> FloatArray:
@@ -473,7 +512,9 @@ class Visualizer:
         return self._colliding
 
     # ------------------------------------------------------------------- animations
-    def _path(self, path: npt.ArrayLike, start: npt.ArrayLike | None) -> FloatArray:
+    def _path(
+        self, path: npt.ArrayLike, start: npt.ArrayLike | None
+    ) -> tuple[FloatArray, list[str | None]]:
         try:
             array = np.asarray(path, dtype=float)
         except (TypeError, ValueError) as exc:
@@ -499,7 +540,11 @@ class Visualizer:
                     argument="start",
                     value=start,
                 )
-            return array
+            return array, [None] * array.shape[0]
+        if start is None:  # the library's rule at the first sample
+            first = select_assembly(array[0], self.robot.design)
+            if bool(first.exists) and not bool(first.home):
+                start = first.R
         followed = track(array, self.robot.design, start=start)
         if np.any(followed.lost):
             k = int(np.argmax(followed.lost))
@@ -508,12 +553,13 @@ class Visualizer:
                 f"{np.degrees(array[k]).round(6).tolist()} deg (the edge of the workspace)",
                 value=array[k],
             )
-        return np.stack(
+        qs = np.stack(
             [
                 self.robot.configuration(theta, followed.labels[k], reference=followed.R[k])
                 for k, theta in enumerate(array)
             ]
         )
+        return qs, list(followed.labels)
 
     def animate(
         self,
@@ -527,7 +573,9 @@ class Visualizer:
         """Load a motion as a meshcat animation (play, pause and scrub it in the page).
 
         A path of input angles is followed continuously in one assembly mode
-        (:func:`~spm_pin.track`), starting from the home mode (or from ``start``).
+        (:func:`~spm_pin.track`), starting from the mode of the library's rule at the
+        first sample (:func:`~spm_pin.select_assembly`: the home mode where it exists,
+        else the real mode nearest to it) or from ``start``.
         Colliding links turn black in the frames where they collide. The static
         scene shows the first sample; :meth:`display` ends the animation.
 
@@ -555,7 +603,7 @@ class Visualizer:
                 argument="repetitions",
                 value=repetitions,
             )
-        qs = self._path(path, start)
+        qs, modes = self._path(path, start)
         times: FloatArray = float(dt) * np.arange(qs.shape[0], dtype=float)
         poses = [self._pose_transforms(q) for q in qs]
         collisions = [self._collisions(q) for q in qs]
@@ -571,7 +619,9 @@ class Visualizer:
         self._show(qs[0])
         self.scene.set_animation(animations, play=bool(play), repetitions=repetitions)
         self._animated = True
-        return RobotAnimation(q=qs, times=times, collisions=collisions)
+        self._mode, self._home = None, False
+        self._caption = None
+        return RobotAnimation(q=qs, times=times, collisions=collisions, modes=modes)
 
     # ------------------------------------------------------------------ the server
     def start(self, *, timeout: float = 10.0) -> str:
@@ -641,29 +691,56 @@ class Visualizer:
         self.stop()
 
     # ------------------------------------------------------------------- HTML export
-    def static_html(self, title: str | None = None) -> str:
+    def static_html(self, title: str | None = None, caption: str | None = None) -> str:
         """The scene (and its animation) as one self-contained HTML page.
 
         The page inlines meshcat's viewer, needs no server and no network.
 
         Args:
             title: Page title (default: ``spm-pin: <design name>``).
+            caption: A line of text shown on the page (default: after
+                :meth:`display` of input angles, the angles, the assembly mode shown
+                and the colliding links; none otherwise).
         """
-        return self.scene.static_html(title or f"spm-pin: {self.robot.design.name}")
+        return self.scene.static_html(
+            title or f"spm-pin: {self.robot.design.name}",
+            caption if caption is not None else self._caption,
+        )
 
-    def save_html(self, path: str | Path, title: str | None = None) -> Path:
+    def save_html(
+        self, path: str | Path, title: str | None = None, caption: str | None = None
+    ) -> Path:
         """Write :meth:`static_html` to a file.
 
         Args:
             path: The HTML file to write.
             title: Page title (default: ``spm-pin: <design name>``).
+            caption: As for :meth:`static_html`.
 
         Returns:
             The path written.
         """
         target = Path(path)
-        target.write_text(self.static_html(title), encoding="utf-8")
+        target.write_text(self.static_html(title, caption), encoding="utf-8")
         return target
+
+
+def _pose_caption(
+    robot: SPMRobot, q: FloatArray, label: str, home: bool, pairs: list[LinkPair]
+) -> str:
+    """One line for a page: the design, the input angles, the mode and the collisions."""
+    theta_deg = np.degrees(q[robot.actuated_q_idx])
+    angles = ", ".join(f"{value:g}" for value in np.round(theta_deg, 3))
+    kind = "home assembly mode" if home else "assembly mode"
+    text = f"{robot.design.name}: theta = [{angles}] deg, {kind} {label}"
+    if not home:
+        text += " (no home-mode assembly; the real mode nearest to it)"
+    if pairs:
+        links = ", ".join(f"{a}-{b}" for a, b in pairs)
+        text += f"; colliding (black): {links}"
+    else:
+        text += "; no collision"
+    return text
 
 
 def _clip(path: str, tracks: list[dict[str, Any]]) -> dict[str, Any]:
