@@ -65,7 +65,7 @@ from .kinematics import (
     inverse_kinematics,
     jacobian,
 )
-from .kinematics._common import as_rotation, mode_label
+from .kinematics._common import ANGLE_LIMIT, as_rotation, mode_label
 from .kinematics.fk import satisfies_home_rule
 from .rotations import (
     matrix_from_quaternion,
@@ -132,6 +132,23 @@ def _number(text: str) -> float:
     return value
 
 
+#: Largest |input angle| on the command line [deg]: the library's ANGLE_LIMIT.
+ANGLE_LIMIT_DEG = math.degrees(ANGLE_LIMIT)
+
+
+def _angle_deg(text: str) -> float:
+    """An input angle [deg] from the command line (argparse ``type``): finite and within
+    the library's range, said in degrees."""
+    value = _number(text)
+    if abs(value) > ANGLE_LIMIT_DEG:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is out of range: input angles must lie within +-{ANGLE_LIMIT_DEG:,.0f} "
+            f"deg ({ANGLE_LIMIT:g} rad, {ANGLE_LIMIT / (2 * math.pi):.0f} turns), where "
+            "double precision keeps the kinematics within their 1e-12 tolerance"
+        )
+    return value
+
+
 def _mode(text: str) -> int | str:
     """A working mode: an index 0..7 or a label such as ``+-+`` (checked by the library)."""
     return int(text) if text.isdigit() else text
@@ -153,7 +170,7 @@ def _design(args: argparse.Namespace) -> SPMDesign:
 def _add_angle_arguments(parser: argparse.ArgumentParser) -> None:
     """The positionals T1 T2 T3: input angles [deg]."""
     for i in (1, 2, 3):
-        parser.add_argument(f"T{i}", type=_number, help=f"input angle theta_{i} [deg]")
+        parser.add_argument(f"T{i}", type=_angle_deg, help=f"input angle theta_{i} [deg]")
 
 
 def _add_design_option(parser: argparse._ActionsContainer) -> None:
@@ -171,7 +188,7 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, to_required: bool) -
         "--from",
         dest="from_deg",
         nargs=3,
-        type=_number,
+        type=_angle_deg,
         default=[0.0, 0.0, 0.0],
         metavar=("T1", "T2", "T3"),
         help="input angles at the start [deg] (default: 0 0 0)",
@@ -180,7 +197,7 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, to_required: bool) -
         "--to",
         dest="to_deg",
         nargs=3,
-        type=_number,
+        type=_angle_deg,
         required=to_required,
         metavar=("T1", "T2", "T3"),
         help="input angles at the end [deg]",

@@ -35,6 +35,7 @@ Non-coaxial designs have no such 2-D reduction; they take the usual path.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -119,24 +120,26 @@ def cached_table(design: SPMDesign) -> BoolArray | None:
     return _TABLES.get(design)
 
 
-def unreachable_table(design: SPMDesign) -> BoolArray:
+def unreachable_table(design: SPMDesign, reachable: Callable[[FloatArray], BoolArray]) -> BoolArray:
     """(TABLE_SIZE, TABLE_SIZE): True where every input of the gap cell has no
     home-mode assembly (certified); indexed by :func:`gap_index`. Coaxial designs only;
-    built once per design (about a second) and kept."""
+    built once per design (about a second) and kept.
+
+    ``reachable(theta)`` is the home-mode solver's verdict on inputs (n, 3): cells whose
+    centre it reaches are not refined (the caller hands it in, so that this module does
+    not import the solver that uses it)."""
     if design in _TABLES:
         return _TABLES[design]
     if not design.is_coaxial:
         raise ValueError("the gap table needs a coaxial design")
     if len(_TABLES) >= _MAX_TABLES:
         _TABLES.pop(next(iter(_TABLES)))
-    table = _build_table(design)
+    table = _build_table(design, reachable)
     _TABLES[design] = table
     return table
 
 
-def _build_table(design: SPMDesign) -> BoolArray:
-    from .fk import _home_solve  # fk imports this module
-
+def _build_table(design: SPMDesign, reachable: Callable[[FloatArray], BoolArray]) -> BoolArray:
     lip = _lipschitz(design)
     table = np.zeros((TABLE_SIZE, TABLE_SIZE), dtype=bool)
     n = _COARSE
@@ -182,7 +185,7 @@ def _build_table(design: SPMDesign) -> BoolArray:
         # Split the undecided cells whose centre is not reachable; children inherit the
         # parent's surviving boxes.
         open_cells = np.nonzero(alive)[0]
-        reach = _home_solve(centre[open_cells], design, None)[1]
+        reach = reachable(centre[open_cells])
         open_cells = open_cells[~reach]
         new_index = np.full(row.size, -1)
         new_index[open_cells] = np.arange(open_cells.size)

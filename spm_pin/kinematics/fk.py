@@ -768,7 +768,7 @@ def _maybe_reachable(reduced: FloatArray, design: SPMDesign) -> npt.NDArray[np.i
     if table is None:
         if reduced.shape[0] < _TABLE_MIN_BATCH:
             return None
-        table = _reach.unreachable_table(design)
+        table = _reach.unreachable_table(design, lambda theta: _home_solve(theta, design, None)[1])
     row, col = _reach.gap_index(reduced)
     result: npt.NDArray[np.intp] = np.nonzero(~table[row, col])[0]
     return result

@@ -1,0 +1,261 @@
+"""The house rules of spm_pin, read from its source with ``ast``.
+
+1. No import circle between modules.
+2. Imports point down the layers of the design (errors, design, rotations ->
+   kinematics -> model -> closure, collision -> dynamics -> workspace, planning ->
+   viz, hardware, calibration, remote, envs, optimize -> study -> cli); nothing
+   imports the command line.
+3. No module over 800 lines.
+
+Imports are read at the top level and inside functions; imports under
+``if TYPE_CHECKING:`` are left out (they never run), and so are the re-exports of
+package ``__init__`` modules (a name imported from a package counts as imported from
+the submodule that defines it). Today's violations are listed in ``ALLOWED``: the test
+fails on any violation not listed, and on any listed entry that no longer occurs, so
+the list can only shrink.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+PACKAGE = "spm_pin"
+ROOT = Path(__file__).resolve().parent.parent / PACKAGE
+
+#: Layer of each top-level part of the package (lower numbers are lower layers).
+LAYERS: dict[str, int] = {
+    "_version": 0,
+    "errors": 0,
+    "design": 0,
+    "rotations": 0,
+    "kinematics": 1,
+    "model": 2,
+    "closure": 3,
+    "collision": 3,
+    "dynamics": 4,
+    "workspace": 5,
+    "planning": 5,
+    "viz": 6,
+    "hardware": 6,
+    "calibration": 6,
+    "remote": 6,
+    "envs": 6,
+    "optimize": 6,
+    "demo": 7,
+    "study": 7,
+    "cli": 8,
+    "__main__": 9,
+}
+#: Longest module [lines].
+MAX_LINES = 800
+
+#: Today's violations, each to be deleted by the step that removes it.
+ALLOWED: dict[str, set[object]] = {
+    "circles": {
+        ("spm_pin.cli", "spm_pin.demo"),
+        ("spm_pin.cli", "spm_pin.hardware._cli"),
+        ("spm_pin.collision", "spm_pin.model.robot"),
+        ("spm_pin.kinematics._fk_single", "spm_pin.kinematics.fk"),
+    },
+    "upward": {
+        ("spm_pin.rotations", "spm_pin.kinematics._common"),
+        ("spm_pin.demo", "spm_pin.cli"),
+        ("spm_pin.hardware._cli", "spm_pin.cli"),
+        ("spm_pin.model.robot", "spm_pin.collision"),
+    },
+    "long": {
+        "spm_pin.calibration",
+        "spm_pin.cli",
+        "spm_pin.closure",
+        "spm_pin.collision",
+        "spm_pin.demo",
+        "spm_pin.dynamics",
+        "spm_pin.hardware.driver",
+        "spm_pin.hardware.emulator",
+        "spm_pin.workspace",
+    },
+}
+
+
+# --------------------------------------------------------------------- reading
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def modules() -> dict[str, Path]:
+    return {module_name(path): path for path in sorted(ROOT.rglob("*.py"))}
+
+
+def is_package(name: str, table: dict[str, Path]) -> bool:
+    return table[name].name == "__init__.py"
+
+
+def _type_checking_block(node: ast.AST) -> bool:
+    if not isinstance(node, ast.If):
+        return False
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _imports(tree: ast.AST) -> Iterator[ast.Import | ast.ImportFrom]:
+    """Every import statement that runs (not under ``if TYPE_CHECKING:``)."""
+    stack: list[ast.AST] = [tree]
+    while stack:
+        node = stack.pop()
+        if _type_checking_block(node):
+            assert isinstance(node, ast.If)
+            stack.extend(node.orelse)
+            continue
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            yield node
+        stack.extend(ast.iter_child_nodes(node))
+
+
+def _absolute(module: str, node: ast.ImportFrom, package: bool) -> str:
+    if node.level == 0:
+        return node.module or ""
+    base = module.split(".") if package else module.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join([*base, node.module] if node.module else base)
+
+
+def _exports(package: str, table: dict[str, Path]) -> dict[str, str]:
+    """Names a package ``__init__`` re-exports -> the module that defines them."""
+    tree = ast.parse(table[package].read_text(encoding="utf-8"))
+    found: dict[str, str] = {}
+    for node in _imports(tree):
+        if isinstance(node, ast.ImportFrom):
+            source = _absolute(package, node, True)
+            for alias in node.names:
+                found[alias.asname or alias.name] = source
+    return found
+
+
+def _resolve(target: str, name: str | None, table: dict[str, Path]) -> str | None:
+    """The spm_pin module an import of ``name`` from ``target`` reads."""
+    if not target.startswith(PACKAGE):
+        return None
+    if name is not None and f"{target}.{name}" in table:
+        return f"{target}.{name}"
+    if target in table and is_package(target, table) and name is not None:
+        source = _exports(target, table).get(name)
+        if source is not None and source != target:
+            return _resolve(source, None, table) or source
+    while target and target not in table:
+        target = target.rpartition(".")[0]
+    return target or None
+
+
+def import_edges() -> set[tuple[str, str]]:
+    """(importer, imported) between spm_pin modules; package __init__ files left out."""
+    table = modules()
+    edges: set[tuple[str, str]] = set()
+    for module, path in table.items():
+        if is_package(module, table):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in _imports(tree):
+            if isinstance(node, ast.Import):
+                targets = [_resolve(alias.name, None, table) for alias in node.names]
+            else:
+                source = _absolute(module, node, False)
+                targets = [_resolve(source, alias.name, table) for alias in node.names]
+            for target in targets:
+                if target is not None and target != module and not is_package(target, table):
+                    edges.add((module, target))
+    return edges
+
+
+def layer(module: str) -> int:
+    part = module.split(".")[1] if "." in module else module
+    return LAYERS[part]
+
+
+# --------------------------------------------------------------------- analysis
+def circles(edges: set[tuple[str, str]]) -> set[tuple[str, str]]:
+    """Pairs of modules (sorted) that lie on one import circle together, reduced to the
+    edges of each strongly connected component's circles."""
+    graph: dict[str, set[str]] = {}
+    for a, b in edges:
+        graph.setdefault(a, set()).add(b)
+        graph.setdefault(b, set())
+
+    def reachable(start: str) -> set[str]:
+        seen, stack = set(), [start]
+        while stack:
+            for nxt in graph[stack.pop()]:
+                if nxt not in seen:
+                    seen.add(nxt)
+                    stack.append(nxt)
+        return seen
+
+    reach = {node: reachable(node) for node in graph}
+    return {(min(a, b), max(a, b)) for a, b in edges if a in reach[b]}  # a -> b and b reaches a
+
+
+def upward(edges: set[tuple[str, str]]) -> set[tuple[str, str]]:
+    return {(a, b) for a, b in edges if layer(b) > layer(a)}
+
+
+def long_modules() -> set[str]:
+    return {
+        name
+        for name, path in modules().items()
+        if len(path.read_text(encoding="utf-8").splitlines()) > MAX_LINES
+    }
+
+
+# ------------------------------------------------------------------------ tests
+def test_every_part_has_a_layer() -> None:
+    parts = {name.split(".")[1] for name in modules() if "." in name}
+    assert parts <= set(LAYERS), f"give these parts a layer: {sorted(parts - set(LAYERS))}"
+
+
+def test_the_reader_sees_known_imports() -> None:
+    """The reader is not blind: it finds imports of each kind that are known to exist."""
+    edges = import_edges()
+    assert ("spm_pin.kinematics.fk", "spm_pin.kinematics._common") in edges  # relative
+    assert ("spm_pin.model.robot", "spm_pin.kinematics.fk") in edges  # via a package
+    assert ("spm_pin.collision", "spm_pin.model.robot") in edges
+    # a function-level import (the robot's lazy collision checker)
+    assert ("spm_pin.model.robot", "spm_pin.collision") in edges
+    # imports inside functions count; under `if TYPE_CHECKING:` they do not
+    source = (
+        "import typing\n"
+        "if typing.TYPE_CHECKING:\n    from .a import A\nelse:\n    import b\n"
+        "def f():\n    from .c import C\n"
+    )
+    read = [
+        node.module if isinstance(node, ast.ImportFrom) else node.names[0].name
+        for node in _imports(ast.parse(source))
+    ]
+    assert sorted(str(x) for x in read) == ["b", "c", "typing"]
+
+
+@pytest.mark.parametrize("rule", ["circles", "upward", "long"])
+def test_house_rules(rule: str) -> None:
+    edges = import_edges()
+    found: set[object] = set(
+        {"circles": circles, "upward": upward}[rule](edges) if rule != "long" else long_modules()
+    )
+    allowed = ALLOWED[rule]
+    new = sorted(map(str, found - allowed))
+    gone = sorted(map(str, allowed - found))
+    assert not new, f"{rule}: new violations of the house rules: {new}"
+    assert not gone, f"{rule}: fixed, so delete from ALLOWED[{rule!r}]: {gone}"
+
+
+def test_nothing_imports_the_command_line() -> None:
+    importers = {a for a, b in import_edges() if b.startswith("spm_pin.cli")}
+    pairs = [pair for pair in ALLOWED["upward"] if isinstance(pair, tuple)]
+    allowed = {a for a, b in pairs if b.startswith("spm_pin.cli")}
+    assert importers <= {"spm_pin.__main__", *allowed}, sorted(importers)
