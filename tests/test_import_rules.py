@@ -59,7 +59,6 @@ ALLOWED: dict[str, set[object]] = {
         ("spm_pin.cli", "spm_pin.demo"),
         ("spm_pin.cli", "spm_pin.hardware._cli"),
         ("spm_pin.collision", "spm_pin.model.robot"),
-        ("spm_pin.kinematics._fk_single", "spm_pin.kinematics.fk"),
     },
     "upward": {
         ("spm_pin.rotations", "spm_pin.kinematics._common"),

@@ -11,7 +11,6 @@ the batch path's answers.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -30,7 +29,7 @@ def _dot(a: Sequence[float], b: Sequence[float]) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-class _Constants(NamedTuple):
+class SingleConstants(NamedTuple):
     """Per-design constants as Python floats."""
 
     u: Mat
@@ -54,14 +53,12 @@ def _mat(rows: Sequence[Sequence[float]]) -> Mat:
     return (_vec(rows[0]), _vec(rows[1]), _vec(rows[2]))
 
 
-@functools.lru_cache(maxsize=32)
-def _constants(design: SPMDesign) -> _Constants:
-    """The constants of a design (frozen and hashable, so cached)."""
-    from .fk import _home_slope  # the batch module imports this one
-
+def make_constants(design: SPMDesign, slope: Sequence[Sequence[float]]) -> SingleConstants:
+    """The constants of a design for :func:`home_rotation`; ``slope`` is d(phi_1,
+    phi_2)/d(theta) of the home mode at home, (2, 3), from the batch module (which
+    caches the result per design)."""
     v0 = _mat(design.v0.tolist())
-    slope = _home_slope(design)
-    return _Constants(
+    return SingleConstants(
         u=_mat(design.u.tolist()),
         w0=_mat(design.w0.tolist()),
         v0=v0,
@@ -101,7 +98,7 @@ def _rotate(axis: Vec, angle: float, x: Vec) -> Vec:
 
 def home_rotation(
     theta: Sequence[float],
-    design: SPMDesign,
+    constants: SingleConstants,
     newton_steps: int,
     polish_extra: int,
     polished: float,
@@ -114,7 +111,7 @@ def home_rotation(
     (``_setup``, ``_newton``, ``_certify``): None where Newton from the home slope
     does not certify a home-mode solution.
     """
-    k = _constants(design)
+    k = constants
     u, w0, v0, body_inv, slope = k.u, k.w0, k.v0, k.body_inv, k.slope
     pa, pb, pd = k.combination
     sa1, ca2, sa2, c12, home_sign = k.sin_a1, k.cos_a2, k.sin_a2, k.c12, k.home_sign

@@ -63,7 +63,7 @@ from ._common import (
     proximal_axes,
     rotation_about,
 )
-from ._fk_single import home_rotation
+from ._fk_single import SingleConstants, home_rotation, make_constants
 
 __all__ = [
     "MAX_ASSEMBLY_MODES",
@@ -668,6 +668,12 @@ def _home_slope(design: SPMDesign) -> FloatArray:
     return slope
 
 
+@functools.lru_cache(maxsize=32)
+def _single_constants(design: SPMDesign) -> SingleConstants:
+    """The float fast path's constants of a design (cached: designs are frozen)."""
+    return make_constants(design, _home_slope(design).tolist())
+
+
 def _home_newton(
     theta: FloatArray, design: SPMDesign, reference: FloatArray | None
 ) -> tuple[FloatArray, BoolArray]:
@@ -731,7 +737,7 @@ def _home_solve(
     if local_ref is None and reduced.shape[0] == 1:  # one input: the float fast path
         single = home_rotation(
             reduced[0].tolist(),
-            design,
+            _single_constants(design),
             _NEWTON_STEPS_FAST,
             _POLISH_EXTRA,
             _POLISHED,
