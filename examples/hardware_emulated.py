@@ -32,7 +32,8 @@ def main() -> None:
             ),
             safety=SafetyLimits(max_speed=np.radians(150), max_acceleration=np.radians(900)),
         )
-        print(f"emulated bus on {emulator.port} at {config.baudrate} bit/s")
+        print(f"port: {emulator.port}  (emulated bus)")
+        print(f"baudrate: {config.baudrate}")
         with (
             ServoBus(
                 config.port,
@@ -43,30 +44,40 @@ def main() -> None:
             ServoSync(servos, config, robot=robot) as sync,
         ):
             start = sync.start()
-            print(f"start: theta = {np.degrees(start.theta).round(3)} deg, torque on")
+            print(f"start_theta_deg: {numbers(np.degrees(start.theta))}  (torque on)")
             result = sync.move_to(demo)
-            print(
-                f"moved in {result.duration:.2f} s, {len(result.states)} cycles, "
-                f"reached {result.reached}, final error {np.degrees(result.final_error):.3f} deg"
-            )
-            print("platform axes v_i (rows) read back along the way, against the FK:")
-            for state in result.states[:: max(1, len(result.states) // 5)]:
+            print(f"goal_deg: {numbers(np.degrees(demo))}")
+            print(f"duration_s: {result.duration:.2f}")
+            print(f"cycles: {len(result.states)}")
+            print(f"reached: {result.reached}")
+            print(f"final_error_deg: {np.degrees(result.final_error):.4f}")
+            print(f"present_position_pulses: {numbers(present(emulator))}  (read by the emulator)")
+            # The platform axes read back along the way, against the FK of the read inputs.
+            for k, state in enumerate(result.states[:: max(1, len(result.states) // 5)]):
                 v = state.R @ robot.design.v0.T
                 fk = spm.forward_kinematics(state.theta)
-                deviation = np.max(np.abs(state.R - fk.R))
                 print(
-                    f"  theta {np.degrees(state.theta).round(2)} deg  v_1 {v[:, 0].round(4)}"
-                    f"  |R - FK| {deviation:.1e}"
+                    f"sample_{k}: theta_deg {numbers(np.degrees(state.theta))}; "
+                    f"v_1 {numbers(v[:, 0])}; R_vs_fk {np.max(np.abs(state.R - fk.R)):.1e}"
                 )
             refused = sync.step(colliding)
-            print(f"goal {np.degrees(colliding)} deg refused: {refused.verdict.reasons}")  # type: ignore[union-attr]
-        print("torque off:", [emulator.item(i, "Torque Enable") == 0 for i in (1, 2, 3)])
+            print(f"refused_goal_deg: {numbers(np.degrees(colliding))}")
+            print(f"refused_because: {'; '.join(refused.verdict.reasons)}")  # type: ignore[union-attr]
+        off = [emulator.item(i, "Torque Enable") == 0 for i in (1, 2, 3)]
+        print(f"torque_off: {' '.join(map(str, off))}")
         sent = [g.pulses for g in emulator.goal_writes() if g.servo_id == 3]
-        highest = np.degrees((max(sent) - 2048) * 2 * np.pi / 4096)
-        print(
-            f"{len(sent)} goals reached each servo; the highest theta_3 sent was "
-            f"{highest:.2f} deg, not the refused 220 deg"
-        )
+        print(f"goals_sent_to_servo_3: {len(sent)}")
+        print(f"highest_goal_3_pulses: {max(sent)}  (not the refused 220 deg)")
+
+
+def present(emulator: EmulatedBus) -> list[int]:
+    """The Present Position [pulses] of servos 1, 2, 3."""
+    return [emulator.item(i, "Present Position") for i in (1, 2, 3)]
+
+
+def numbers(values: np.ndarray | list[int]) -> str:
+    """``values`` as space-separated numbers, to 12 significant digits."""
+    return " ".join(f"{x:.12g}" for x in np.ravel(values))
 
 
 if __name__ == "__main__":

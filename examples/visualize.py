@@ -55,18 +55,19 @@ def write(out: Path, png: Path | None) -> None:
     viz = Visualizer(robot)
     pairs = viz.display(theta, mode=label)
     scenes["colliding"] = viz.save_html(out / "colliding.html")
-    print(f"theta = {COLLIDING_DEG} deg, assembly mode {label}: colliding links")
-    for a, b in pairs:
-        print(f"  {a} - {b}")
+    print(f"colliding_theta_deg: {' '.join(f'{x:g}' for x in COLLIDING_DEG)}")
+    print(f"colliding_mode: {label}")
+    print(f"colliding_links: {' '.join(f'{a}-{b}' for a, b in pairs) or 'none'}")
 
     viz = Visualizer(robot)
     path = np.linspace(0.0, 1.0, 25)[:, None] * np.radians(DEMO_DEG)
     motion = viz.animate(path, dt=0.08)
     scenes["motion"] = viz.save_html(out / "motion.html")
-    print(f"motion: {len(motion.times)} samples, colliding at {motion.colliding_samples}")
+    print(f"motion_samples: {len(motion.times)}")
+    print(f"motion_colliding_samples: {' '.join(map(str, motion.colliding_samples)) or 'none'}")
 
     for name, path_html in scenes.items():
-        print(f"wrote {name}: {path_html} ({path_html.stat().st_size / 1e6:.2f} MB)")
+        print(f"wrote_{name}: {path_html} ({path_html.stat().st_size} B)")
 
     if png is not None:
         from spm_pin.viz.browser import chromium, screenshot
@@ -76,7 +77,7 @@ def write(out: Path, png: Path | None) -> None:
             for name in ("home", "demo", "colliding"):
                 picture = png / f"spm_{name}.png"
                 screenshot(scenes[name], picture, size=PICTURE_SIZE, browser=browser)
-                print(f"wrote {picture}")
+                print(f"wrote_{name}_png: {picture} ({picture.stat().st_size} B)")
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ if TYPE_CHECKING:
         synthetic_readings,
     )
     from .closure import ClosedLoop, FrameTargetResult, PathResult, ProjectionResult
-    from .collision import CollisionChecker, CollisionReport
+    from .collision import CollisionChecker, CollisionReport, build_robot
     from .dynamics import (
         XM540_W150,
         ClosedLoopDynamics,
@@ -68,13 +68,13 @@ if TYPE_CHECKING:
         plot_torques,
         simulate_mujoco,
     )
-    from .model.robot import SPMRobot, build_robot
+    from .model.robot import SPMRobot
     from .workspace import WorkspaceMap, WorkspaceSettings, workspace_map
 
 #: Names served lazily from submodules that import Pinocchio (``import spm_pin`` stays
 #: light), by module; each is also in that module's ``__all__`` (checked by the tests).
 _LAZY_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".model.robot": ("SPMRobot", "build_robot"),
+    ".model.robot": ("SPMRobot",),
     # The generic loop-closure solver (Pinocchio).
     ".closure": ("ClosedLoop", "FrameTargetResult", "PathResult", "ProjectionResult"),
     # Constrained dynamics, simulation and servos (Pinocchio; MuJoCo and matplotlib only
@@ -98,8 +98,9 @@ _LAZY_EXPORTS: dict[str, tuple[str, ...]] = {
         "plot_torques",
         "simulate_mujoco",
     ),
-    # Self-collision (Pinocchio, coal) and workspace maps.
-    ".collision": ("CollisionChecker", "CollisionReport"),
+    # Self-collision (Pinocchio, coal) and workspace maps; build_robot gives the robot
+    # its collision checker.
+    ".collision": ("CollisionChecker", "CollisionReport", "build_robot"),
     ".workspace": ("WorkspaceMap", "WorkspaceSettings", "workspace_map"),
     # Calibration (scipy is imported only when calibrating).
     ".calibration": (

@@ -601,7 +601,7 @@ def _run_export(args: argparse.Namespace) -> int:
 def _visualizer(args: argparse.Namespace) -> Any:
     """A :class:`~spm_pin.viz.Visualizer` of the chosen design with the chosen overlays."""
     try:  # imported here: meshcat is an optional dependency (the viz extra)
-        from .model.robot import build_robot
+        from .collision import build_robot
         from .viz import Visualizer
     except ImportError as exc:
         raise _UsageError(str(exc)) from exc
@@ -1189,8 +1189,7 @@ def collide_record(theta_deg: Sequence[float], design: SPMDesign, margin_m: floa
     pairs, lists of two names), ``min_distance_m`` and its ``min_distance_pair``,
     ``margin_m``, ``fixed_clearance_m`` and ``distances`` (every checked pair).
     """
-    from .collision import check_input
-    from .model.robot import build_robot
+    from .collision import build_robot, check_input
 
     robot = build_robot(design)
     report = check_input(np.radians(np.asarray(theta_deg, dtype=float)), robot, margin=margin_m)

@@ -90,7 +90,9 @@ __all__ = [
     "CollisionReport",
     "ConvexPiece",
     "LinkPair",
+    "build_robot",
     "check_input",
+    "checker_of",
     "convex_pieces",
 ]
 
@@ -1914,6 +1916,47 @@ class CollisionReport:
 _THETA_LINKS = frozenset({"base", "proximal_1", "proximal_2", "proximal_3"})
 
 
+def build_robot(design: SPMDesign | str | None = None) -> SPMRobot:
+    """The SPM as a Pinocchio model with geometry, loop closures and its self-collision
+    checker: :func:`spm_pin.model.robot.build_robot` given
+    :class:`CollisionChecker` as its checker factory. This is ``spm.build_robot``.
+
+    Args:
+        design: The SPM (default: the prototype).
+
+    Returns:
+        An :class:`~spm_pin.SPMRobot` whose ``collisions``, ``distances`` and
+        ``min_clearance`` work.
+
+    Example:
+        >>> import spm_pin as spm
+        >>> robot = spm.build_robot()
+        >>> robot.collisions([0.0, 0.0, 0.0])
+        []
+    """
+    from .model.robot import build_robot as build_model
+
+    return build_model(design, checker_factory=CollisionChecker)
+
+
+def checker_of(robot: SPMRobot) -> CollisionChecker:
+    """The robot's own :class:`CollisionChecker`, made and kept on the robot when it
+    was built without one (by ``spm_pin.model.robot.build_robot``)."""
+    checker = robot.__dict__.get("_collision_checker")
+    if isinstance(checker, CollisionChecker):
+        return checker
+    try:
+        own = robot.collision_checker
+    except InputError:  # a robot built without a checker factory
+        own = None
+    if isinstance(own, CollisionChecker):
+        return own
+    made = CollisionChecker(robot)
+    if own is None:
+        robot.__dict__["_collision_checker"] = made
+    return made
+
+
 def check_input(
     theta: npt.ArrayLike,
     robot: SPMRobot | None = None,
@@ -1935,7 +1978,7 @@ def check_input(
     Raises:
         InputError: bad ``theta``, ``robot`` or ``margin``.
     """
-    from .model.robot import SPMRobot, build_robot
+    from .model.robot import SPMRobot
 
     angles = as_theta(theta)
     if angles.shape != (3,):
@@ -1951,7 +1994,7 @@ def check_input(
         raise InputError(
             f"robot must be an SPMRobot, got {type(robot).__name__}", argument="robot", value=robot
         )
-    checker = robot.collision_checker
+    checker = checker_of(robot)
     chosen = select_assembly(angles, robot.design)
     mode = str(chosen.label) if bool(chosen.exists) else None
     q: FloatArray | None = None

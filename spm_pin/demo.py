@@ -345,7 +345,7 @@ class DemoContext:
     @functools.cached_property
     def robot(self) -> SPMRobot:
         """The :class:`~spm_pin.SPMRobot` of the design (built once)."""
-        from .model.robot import build_robot
+        from .collision import build_robot
 
         return build_robot(self.design)
 

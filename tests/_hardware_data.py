@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from spm_pin.hardware import XM540_W150, HardwareConfig, SafetyLimits
@@ -19,15 +21,16 @@ BAUD = DEFAULT_BAUDRATE
 IDS = (1, 2, 3)
 
 
-def fail_budget(reply_bytes: int = 3 * (11 + 20), baudrate: int = BAUD) -> float:
-    """Longest a failing transaction may take [s]: 3 attempts x (packet timeout + pause).
+def packet_timeout_s(reply_bytes: int, baudrate: int = BAUD) -> float:
+    """The driver's packet timeout for a reply of ``reply_bytes`` [s], restated here.
 
-    The packet timeout is the wire time of ``reply_bytes`` at ``baudrate`` (10 bits a
-    byte) + 2 x LATENCY_MS + 2 ms; the pause before a retry is LATENCY_MS. Half a
-    second of slack covers the scheduler of a loaded machine.
+    The wire time of ``reply_bytes`` at ``baudrate`` (10 bits a byte) + 2 x LATENCY_MS
+    + 2 ms: dynamixel-sdk's ``setPacketTimeout`` with the latency ServoBus was given.
+    The SDK asks for 11 bytes after a PING or a write and (11 + data bytes) x servos
+    after a (fast) sync read.
     """
     wire_ms = reply_bytes * 10_000.0 / baudrate
-    return 3 * (wire_ms + 3 * LATENCY_MS + 2.0) / 1000.0 + 0.5
+    return (wire_ms + 2.0 * LATENCY_MS + 2.0) / 1000.0
 
 
 #: Tolerances of the hardware tests.
@@ -38,7 +41,7 @@ TOL = {
 }
 
 
-def fast_config(port: str, **safety: float) -> HardwareConfig:
+def fast_config(port: str, **safety: Any) -> HardwareConfig:
     """A configuration for quick moves on the emulated bus (faster than the default)."""
     limits = SafetyLimits(**{"max_speed": 3.0, "max_acceleration": 15.0, **safety})
     servo = ServoSettings(profile_velocity=4.0, profile_acceleration=40.0)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable
+from typing import NoReturn
 
 import numpy as np
 import pytest
@@ -162,6 +163,15 @@ _MISSING_MODULE_SKIPS: list[str] = []
 
 def _under_ci() -> bool:
     return os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
+
+
+def missing_dependency(reason: str) -> NoReturn:
+    """Skip a test whose optional dependency is missing (not a module, so no
+    pytest.importorskip: data files, a browser); under CI, where every test dependency
+    is installed, fail instead."""
+    if _under_ci():
+        pytest.fail(f"{reason}; under CI (CI=true) every test dependency must be installed")
+    pytest.skip(reason)
 
 
 def _record_missing_module(report: pytest.CollectReport | pytest.TestReport) -> None:

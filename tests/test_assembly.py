@@ -80,7 +80,7 @@ def test_no_real_assembly() -> None:
     assert np.all(np.isnan(chosen.R))
     assert chosen.description == "no real assembly mode"
     robot = spm.build_robot(NO_ASSEMBLY_DESIGN)
-    with pytest.raises(spm.UnreachableError):
+    with pytest.raises(spm.UnreachableError, match="has no assembly in mode 'nearest'"):
         robot.configuration(theta, "nearest")
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import subprocess
 import sys
 import warnings
@@ -695,7 +696,7 @@ def test_malformed_files_report_the_line(case: str, tmp_path: Path) -> None:
     text, line, message = MALFORMED[case]
     path = tmp_path / "bad.csv"
     path.write_text(text)
-    with pytest.raises(spm.FileFormatError) as info:
+    with pytest.raises(spm.FileFormatError, match=re.escape(message)) as info:
         cal.load_readings(path)
     error = info.value
     assert isinstance(error, ValueError)

@@ -19,8 +19,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import spm_pin as spm
+from spm_pin import demo
 from spm_pin.cli import FK_SOLVERS, FKSolution, main
-from spm_pin.demo import DEMO_SECTIONS, MUJOCO_TOLERANCE
+from spm_pin.demo import DEMO_SECTIONS
 from spm_pin.rotations import (
     matrix_from_quaternion,
     matrix_from_rpy,
@@ -34,7 +35,11 @@ TOL = {
     "round_trip_deg": 1e-9,  # fk then ik gives back the input [deg]
     "text": 1e-6,  # a value printed as text (6 decimals)
     "residual": 1e-12,  # closure residual of a solution
-    "mujoco": MUJOCO_TOLERANCE["gravity"],  # spm demo: MuJoCo's axes against the analytic
+    # spm demo: MuJoCo's platform axes against the analytic ones, upright (its welds
+    # yield under gravity): the demo's acceptance bound MUJOCO_TOLERANCE["gravity"] of
+    # docs/demo.md's snippet, 1e-4, over ten times the 8e-6 docs/demo.md measures and
+    # below the study's 4e-4.
+    "mujoco": 1e-4,
 }
 
 THETA_DEG = [60.0, 90.0, 120.0]  # the published study's demonstration input
@@ -283,6 +288,11 @@ def test_design_round_trip(capsys: pytest.CaptureFixture[str], tmp_path: Path) -
 
 
 # ----------------------------------------------------------------------------- demo
+def test_demo_mujoco_bound_is_no_looser_than_documented() -> None:
+    """The demo's own acceptance bound on MuJoCo's axes keeps the documented figure."""
+    assert TOL["mujoco"] >= demo.MUJOCO_TOLERANCE["gravity"]
+
+
 def test_demo_text(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """``spm demo --quick``: the study in text, progress on stderr, the report written.
     (tests/test_demo.py checks the default run's numbers and files in depth.)"""

@@ -309,7 +309,8 @@ def test_the_study_colliding_input(robot: spm.SPMRobot) -> None:
     assert report.collision and ("proximal_2", "proximal_3") in report.pairs
     assert report.checked_pairs == LINK_PAIRS
     assert report.distances[("proximal_2", "proximal_3")] < 0.0
-    with pytest.raises(spm.UnreachableError):
+    match = r"theta = \[60\.0, 90\.0, 220\.0\] deg has no assembly in mode 'home'"
+    with pytest.raises(spm.UnreachableError, match=match):
         robot.collisions(theta)
 
 
@@ -628,10 +629,13 @@ def test_cli_collide_bad_input(argv: list[str], capsys: pytest.CaptureFixture[st
 def test_bad_input_properties(checker: CollisionChecker, x: list[float], margin: float) -> None:
     """Wrong shapes and non-finite numbers raise InputError naming the argument; so
     does any negative or non-finite margin (even with a good x)."""
-    with pytest.raises(spm.InputError) as info:
+    shapes = r"input angles theta of shape \(3,\) or a joint configuration q of shape \(9,\)"
+    allowed = rf"must (be {shapes}|be finite with \|x\| <= 2048 rad)"
+    with pytest.raises(spm.InputError, match=f"^x {allowed}") as info:
         checker.collisions(x)
     assert info.value.argument == "x" and "x must" in str(info.value)
-    with pytest.raises(spm.InputError) as info:
+    match = r"^margin must be a finite distance >= 0 \[m\]"
+    with pytest.raises(spm.InputError, match=match) as info:
         checker.collisions(np.zeros(9), margin=margin)
     assert info.value.argument == "margin" and repr(margin) in str(info.value)
 
@@ -662,7 +666,7 @@ def test_bad_input_properties(checker: CollisionChecker, x: list[float], margin:
 def test_bad_input(
     robot: spm.SPMRobot, checker: CollisionChecker, call: Any, argument: str
 ) -> None:
-    with pytest.raises(spm.SPMError) as info:
+    with pytest.raises(spm.SPMError, match=rf"^{argument}( must\b|: )") as info:
         call(robot, checker)
     assert isinstance(info.value, spm.InputError)
     assert info.value.argument == argument

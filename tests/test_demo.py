@@ -11,11 +11,11 @@ import contextlib
 import html.parser
 import io
 import json
+import math
 import os
 import re
 import struct
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -29,21 +29,24 @@ from spm_pin.demo import (
     DEMO_SECTIONS,
     INSTALL_DEMO,
     MUJOCO_SETTLE_STEPS,
-    MUJOCO_TOLERANCE,
-    PROJECTION_TOLERANCE,
-    STUDY_AGREEMENT,
     DemoContext,
     mujoco_platform_axes,
 )
 from spm_pin.errors import InputError
 from spm_pin.workspace import WorkspaceMap, gaps_from_theta
 
-#: Tolerances, by what they compare.
+#: Tolerances, by what they compare. The cross-check tolerances restate the demo's
+#: stated ones (spm_pin.demo: PROJECTION_TOLERANCE, MUJOCO_TOLERANCE["gravity"] and
+#: ["no_gravity"], STUDY_AGREEMENT) so that loosening them there fails here.
 TOL = {
     "json": 1e-12,  # a value in the record against the library's own value
-    "projection": PROJECTION_TOLERANCE,  # Newton projection against the analytic axes
-    "mujoco": MUJOCO_TOLERANCE["gravity"],  # MuJoCo upright against the analytic axes
-    "mujoco_no_gravity": MUJOCO_TOLERANCE["no_gravity"],  # MuJoCo without load
+    # Newton projection against the analytic axes: both solve the loops to 1e-12
+    "projection": 1e-10,
+    # MuJoCo upright against the analytic axes: the soft welds yield under the
+    # platform's weight (about 1e-5 at the default settings)
+    "mujoco": 1e-4,
+    "mujoco_no_gravity": 1e-9,  # MuJoCo without load: the welds close to rounding
+    "study": 4e-4,  # the study's agreement of computed and simulated axes (the paper)
     "torque": 1e-9,  # the record's torques against inverse dynamics recomputed [N m]
     "rotation": 1e-9,  # R R^T = I for MuJoCo's body orientations
 }
@@ -51,8 +54,6 @@ TOL = {
 THETA_DEG = [60.0, 90.0, 120.0]
 COLLIDING_DEG = [60.0, 90.0, 220.0]
 SAMPLES = 25
-#: The demo's time budget [s] (a default run takes about 15 s).
-MAX_RUNTIME_S = 120.0
 
 SECTION_KEYS = [
     "design",
@@ -88,17 +89,15 @@ def default_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """``spm demo --out DIR --json``, the default settings, run once (in this process)."""
     out = tmp_path_factory.mktemp("demo") / "report"
     stdout, stderr = io.StringIO(), io.StringIO()
-    start = time.perf_counter()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         status = main(["demo", "--out", str(out), "--json"])
-    seconds = time.perf_counter() - start
     assert status == 0, stderr.getvalue()
 
     def no_constants(name: str) -> None:
         raise AssertionError(f"JSON output contains {name}")
 
     record = json.loads(stdout.getvalue(), parse_constant=no_constants)
-    return {"out": out, "record": record, "stderr": stderr.getvalue(), "seconds": seconds}
+    return {"out": out, "record": record, "stderr": stderr.getvalue()}
 
 
 @pytest.fixture(scope="module")
@@ -119,12 +118,15 @@ def robot() -> spm.SPMRobot:
 
 
 # ------------------------------------------------------------------ the record
-def test_default_run_is_fast_and_complete(default_run: dict[str, Any]) -> None:
+def test_default_run_is_complete(default_run: dict[str, Any]) -> None:
+    """Every section ran and reported; how long it took is the benchmarks' business
+    (docs/demo.md: about 15 s), so the record's times are checked for form only."""
     record = default_run["record"]
-    assert default_run["seconds"] < MAX_RUNTIME_S
-    assert 0.0 < record["runtime_s"] < MAX_RUNTIME_S
     assert list(record) == RECORD_KEYS
     assert list(record["timing_s"]) == SECTION_KEYS
+    times = [*record["timing_s"].values(), record["runtime_s"]]
+    assert all(isinstance(t, float) and math.isfinite(t) for t in times)
+    assert min(times) >= 0.0 and sum(record["timing_s"].values()) <= record["runtime_s"]
     assert record["skipped"] == []  # the test extra brings every optional dependency
     assert record["failed_checks"] == []
     assert record["theta_deg"] == THETA_DEG
@@ -163,7 +165,7 @@ def test_forward_kinematics_three_ways(record: dict[str, Any], robot: spm.SPMRob
     )
     upright = methods["mujoco"]["deviation_from_analytic"]
     unloaded = methods["mujoco_no_gravity"]["deviation_from_analytic"]
-    assert unloaded < 1e-3 * upright < STUDY_AGREEMENT
+    assert unloaded < 1e-3 * upright < TOL["study"]
     assert (
         methods["mujoco"]["weld_opening_rad"]
         > 1e3 * methods["mujoco_no_gravity"]["weld_opening_rad"]
@@ -176,7 +178,7 @@ def test_forward_kinematics_three_ways(record: dict[str, Any], robot: spm.SPMRob
         "mujoco": True,
         "mujoco_no_gravity": True,
     }
-    assert fk_data["study_agreement"] == STUDY_AGREEMENT
+    assert fk_data["study_agreement"] == TOL["study"]
 
 
 def test_motion_25_samples(record: dict[str, Any], robot: spm.SPMRobot) -> None:
@@ -455,30 +457,36 @@ def test_mujoco_platform_axes(robot: spm.SPMRobot) -> None:
 
 
 @pytest.mark.parametrize(
-    "kwargs",
+    ("kwargs", "message"),
     [
-        {"path": np.zeros((2, 2))},
-        {"path": [[0.0, np.nan, 0.0]]},
-        {"settle_steps": 1},
-        {"timestep": 0.0},
-        {"gravity": (0.0, 9.81)},
-        {"mjcf": "no/such/file.xml"},
+        ({"path": np.zeros((2, 2))}, r"path must be .* shape \(N, 3\) .* got shape \(2, 2\)"),
+        ({"path": [[0.0, np.nan, 0.0]]}, r"path must be finite input angles"),
+        ({"settle_steps": 1}, r"settle_steps must be an integer >= 2, got 1"),
+        ({"timestep": 0.0}, r"timestep must be positive \[s\], got 0\.0"),
+        ({"gravity": (0.0, 9.81)}, r"gravity must be 3 finite numbers"),
+        ({"mjcf": "no/such/file.xml"}, r"MJCF file 'no/such/file\.xml' does not exist"),
     ],
     ids=["shape", "nan", "settle_steps", "timestep", "gravity", "mjcf"],
 )
-def test_mujoco_platform_axes_bad_input(robot: spm.SPMRobot, kwargs: dict[str, Any]) -> None:
+def test_mujoco_platform_axes_bad_input(
+    robot: spm.SPMRobot, kwargs: dict[str, Any], message: str
+) -> None:
     arguments: dict[str, Any] = {"path": np.zeros((1, 3)), **kwargs}
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match=message):
         mujoco_platform_axes(robot=robot, **arguments)
 
 
 @pytest.mark.parametrize(
-    "changes",
-    [{"samples": 1}, {"workspace_step_deg": 0.0}, {"theta_deg": (0.0, 1.0)}],
+    ("changes", "message"),
+    [
+        ({"samples": 1}, r"samples must be an integer >= 2, got 1"),
+        ({"workspace_step_deg": 0.0}, r"workspace_step_deg must be a positive number, got 0\.0"),
+        ({"theta_deg": (0.0, 1.0)}, r"theta_deg must be three finite angles \[deg\]"),
+    ],
     ids=["samples", "step", "theta"],
 )
-def test_bad_context(changes: dict[str, Any]) -> None:
-    with pytest.raises(InputError):
+def test_bad_context(changes: dict[str, Any], message: str) -> None:
+    with pytest.raises(InputError, match=message):
         DemoContext(**changes)
 
 

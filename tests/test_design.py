@@ -113,14 +113,14 @@ def test_home_configuration(name: str) -> None:
         a * v0[0] + b * v0[1] + c * np.cross(v0[0], v0[1]), v0[2], atol=1e-14
     )
     # The derived arrays are read-only.
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="read-only"):
         d.w0[0, 0] = 1.0
     assert name in d.summary() or d.name in d.summary()
 
 
 def test_designs_are_frozen_and_hashable() -> None:
     d = spm.SPMDesign.prototype()
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(dataclasses.FrozenInstanceError, match="cannot assign to field 'alpha1'"):
         d.alpha1 = 1.0  # type: ignore[misc]
     assert hash(d) == hash(spm.SPMDesign.prototype())
     assert d != spm.SPMDesign.coaxial(45.0, 90.0, 91.0)
@@ -315,7 +315,8 @@ def test_from_spec_bad_name_lists_the_presets(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(spm.DesignError) as info:
+    match = r"unknown design 'agile': not a preset \(prototype, agile_eye\) and not a file"
+    with pytest.raises(spm.DesignError, match=match) as info:
         spm.SPMDesign.from_spec("agile")
     message = str(info.value)
     assert "'agile'" in message and "not a file either" in message

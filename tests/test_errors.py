@@ -4,6 +4,7 @@ impossible designs and malformed design files are rejected with useful data."""
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -87,6 +88,16 @@ THETA_FUNCTIONS: dict[str, Callable[[Any], object]] = {
 }
 
 
+#: The argument each of THETA_FUNCTIONS names in its messages.
+THETA_ARGUMENT = {
+    "forward_kinematics": "theta",
+    "forward_kinematics_all": "theta",
+    "jacobian": "theta",
+    "track": "theta_path",
+    "ik theta_near": "theta_near",
+}
+
+
 # None is the default of theta_near, so it is not bad input there.
 BAD_THETA_CASES = [
     (function, bad)
@@ -98,7 +109,10 @@ BAD_THETA_CASES = [
 
 @pytest.mark.parametrize(("function", "bad"), BAD_THETA_CASES)
 def test_bad_theta(function: str, bad: str) -> None:
-    with pytest.raises(spm.InputError) as info:
+    name = THETA_ARGUMENT[function]
+    # the argument's name, then what is allowed: the finite range or the shape
+    allowed = rf"finite with \|{name}\| <= 2048 rad|shape \(3,\) or \(\.\.\., 3\)"
+    with pytest.raises(spm.InputError, match=rf"^{name} must .*({allowed})") as info:
         THETA_FUNCTIONS[function](BAD_THETA[bad])
     assert isinstance(info.value, ValueError)
     assert info.value.argument in {"theta", "theta_path", "theta_near"}
@@ -119,11 +133,13 @@ def test_any_non_finite_entry_is_rejected(value: float, index: int) -> None:
 
 def test_track_needs_a_sequence(prototype: spm.SPMDesign) -> None:
     for bad in (np.zeros(3), np.zeros((0, 3)), np.zeros((2, 2, 3))):
-        with pytest.raises(spm.InputError):
+        with pytest.raises(
+            spm.InputError, match=r"^theta_path must have shape \(N, 3\) with N >= 1"
+        ):
             spm.track(bad, prototype)
-    with pytest.raises(spm.InputError):
+    with pytest.raises(spm.InputError, match=r"^max_depth must be a non-negative integer, got -1"):
         spm.track(np.zeros((2, 3)), prototype, max_depth=-1)
-    with pytest.raises(spm.InputError):
+    with pytest.raises(spm.InputError, match=r"^start must be one rotation \(3, 3\)"):
         spm.track(np.zeros((2, 3)), prototype, start=np.stack([np.eye(3)] * 2))
 
 
@@ -144,6 +160,23 @@ def _not_rotations() -> dict[str, Any]:
     }
 
 
+_SHAPE = r"must have shape \(3, 3\) or \(\.\.\., 3, 3\), got shape "
+_NOT_ROTATION = r"is not a rotation matrix \(.*\); allowed: orthonormal within 1e-06 with det \+1"
+#: What the message says of each of _not_rotations(), after the argument's name.
+NOT_ROTATION_MATCH = {
+    "2x2": _SHAPE + r"\(2, 2\)",
+    "vector": _SHAPE + r"\(3,\)",
+    "3x4": _SHAPE + r"\(3, 4\)",
+    "scaled": _NOT_ROTATION,
+    "mirror": _NOT_ROTATION,
+    "sheared": _NOT_ROTATION,
+    "zero": _NOT_ROTATION,
+    "NaN": "must be finite",
+    "inf": "must be finite",
+    "string": r"must be rotation matrices of shape \(3, 3\) or \(\.\.\., 3, 3\)",
+    "bad item in a batch": r"is not a rotation matrix \(.*at batch index \(1,\)\); allowed",
+}
+
 ROTATION_FUNCTIONS: dict[str, Callable[[Any], object]] = {
     "inverse_kinematics": lambda R: spm.inverse_kinematics(R, PROTOTYPE),
     "inverse_kinematics_all": lambda R: spm.inverse_kinematics_all(R, PROTOTYPE),
@@ -151,12 +184,21 @@ ROTATION_FUNCTIONS: dict[str, Callable[[Any], object]] = {
     "fk reference": lambda R: spm.forward_kinematics(np.zeros(3), PROTOTYPE, reference=R),
     "track start": lambda R: spm.track(np.zeros((2, 3)), PROTOTYPE, start=R),
 }
+#: The argument each of ROTATION_FUNCTIONS names in its messages.
+ROTATION_ARGUMENT = {
+    "inverse_kinematics": "R",
+    "inverse_kinematics_all": "R",
+    "jacobian R": "R",
+    "fk reference": "reference",
+    "track start": "start",
+}
 
 
 @pytest.mark.parametrize("function", ROTATION_FUNCTIONS)
 @pytest.mark.parametrize("bad", _not_rotations())
 def test_bad_rotation(function: str, bad: str) -> None:
-    with pytest.raises(spm.InputError) as info:
+    match = rf"^{ROTATION_ARGUMENT[function]} {NOT_ROTATION_MATCH[bad]}"
+    with pytest.raises(spm.InputError, match=match) as info:
         ROTATION_FUNCTIONS[function](_not_rotations()[bad])
     assert isinstance(info.value, ValueError)
 
@@ -202,21 +244,24 @@ def test_reference_must_broadcast() -> None:
 
 
 def test_jacobian_rotation_must_broadcast() -> None:
-    with pytest.raises(spm.InputError):
+    match = r"R of shape \(3, 3, 3\) does not match theta of shape \(4, 3\); R must broadcast"
+    with pytest.raises(spm.InputError, match=match):
         spm.jacobian(np.zeros((4, 3)), PROTOTYPE, R=np.stack([np.eye(3)] * 3))
 
 
 def test_jacobian_tolerance_must_be_a_number() -> None:
-    with pytest.raises(spm.InputError):
+    with pytest.raises(spm.InputError, match=r"^tol must be a number in \[0, 1\), got 'tight'"):
         spm.jacobian(np.zeros(3), PROTOTYPE, tol="tight")  # type: ignore[arg-type]
 
 
 def test_single_unreachable_inputs_raise_with_data() -> None:
     theta = np.radians([0.0, 0.0, 200.0])
-    with pytest.raises(spm.UnreachableError) as info:
+    where = r"theta = \[0\.0, 0\.0, 200\.0\] deg"
+    with pytest.raises(spm.UnreachableError, match=f"no home-mode assembly at {where}") as info:
         spm.jacobian(theta, PROTOTYPE)
     np.testing.assert_array_equal(info.value.value, theta)
-    with pytest.raises(spm.UnreachableError):
+    match = f"no home-mode assembly at the first sample, {where}; pass start="
+    with pytest.raises(spm.UnreachableError, match=match):
         spm.track(np.stack([theta, np.zeros(3)]), PROTOTYPE)
     assert not spm.forward_kinematics(theta, PROTOTYPE).reachable  # FK flags, never raises
 
@@ -229,24 +274,40 @@ BAD_QUATERNIONS = {
     "three entries": [1.0, 0.0, 0.0],
     "string": "q",
 }
+#: What the message says of each of BAD_QUATERNIONS.
+QUATERNION_MATCH = {
+    "zero": "must be non-zero",
+    "NaN": "must be finite",
+    "inf": "must be finite",
+    "three entries": r"must have shape \(4,\) or \(\.\.\., 4\), got \(3,\)",
+    "string": "must be numbers",
+}
 
 
 @pytest.mark.parametrize("bad", BAD_QUATERNIONS)
 def test_bad_quaternion(bad: str) -> None:
-    with pytest.raises(spm.InputError):
+    with pytest.raises(spm.InputError, match=f"^quaternion {QUATERNION_MATCH[bad]}"):
         matrix_from_quaternion(BAD_QUATERNIONS[bad])
 
 
-@pytest.mark.parametrize("bad", [[0.0, 0.0], [math.nan, 0.0, 0.0], [0.0, math.inf, 0.0], "rpy"])
-def test_bad_rpy(bad: Any) -> None:
-    with pytest.raises(spm.InputError):
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [
+        ([0.0, 0.0], r"must have shape \(3,\) or \(\.\.\., 3\), got \(2,\)"),
+        ([math.nan, 0.0, 0.0], "must be finite"),
+        ([0.0, math.inf, 0.0], "must be finite"),
+        ("rpy", "must be numbers"),
+    ],
+)
+def test_bad_rpy(bad: Any, message: str) -> None:
+    with pytest.raises(spm.InputError, match=f"^rpy {message}"):
         matrix_from_rpy(bad)
 
 
 @pytest.mark.parametrize("function", [rpy_from_matrix, quaternion_from_matrix])
 @pytest.mark.parametrize("bad", ["2x2", "NaN", "string", "scaled", "mirror"])
 def test_bad_matrix_for_conversions(function: Callable[[Any], object], bad: str) -> None:
-    with pytest.raises(spm.InputError):
+    with pytest.raises(spm.InputError, match=f"^R {NOT_ROTATION_MATCH[bad]}"):
         function(_not_rotations()[bad])
 
 
@@ -264,7 +325,10 @@ def _design(**changes: Any) -> spm.SPMDesign:
 @pytest.mark.parametrize("parameter", ["alpha1", "alpha2", "beta"])
 @pytest.mark.parametrize("value", [0.0, math.pi, -0.1, 4.0, math.nan, math.inf, "1", None])
 def test_impossible_angles(parameter: str, value: Any) -> None:
-    with pytest.raises(spm.DesignError) as info:
+    # out of range: the value and the open range (0, 180) deg; not a number: what is wanted
+    allowed = r"= -?[\d.]+ deg is impossible: it must lie strictly between 0 and 180 deg"
+    match = rf"^{parameter} ({allowed}|must be a finite angle \[rad\])"
+    with pytest.raises(spm.DesignError, match=match) as info:
         _design(**{parameter: value})
     assert info.value.parameter == parameter
     assert parameter in str(info.value)
@@ -289,7 +353,7 @@ def test_impossible_angles(parameter: str, value: Any) -> None:
     ],
 )
 def test_impossible_design_parameters(changes: dict[str, Any], parameter: str) -> None:
-    with pytest.raises(spm.DesignError) as info:
+    with pytest.raises(spm.DesignError, match=rf"^{re.escape(parameter)}[ :]") as info:
         _design(**changes)
     assert info.value.parameter == parameter
 
@@ -314,18 +378,24 @@ def test_unknown_preset_lists_the_choices() -> None:
 
 
 def test_bad_link_dimensions() -> None:
-    with pytest.raises(spm.DesignError) as info:
+    match = r"^dimensions\.proximal_radius must be a finite positive number, got -1\.0"
+    with pytest.raises(spm.DesignError, match=match) as info:
         spm.LinkDimensions(proximal_radius=-1.0)
     assert info.value.parameter == "proximal_radius"
-    with pytest.raises(spm.DesignError):
+    with pytest.raises(spm.DesignError, match=r"^dimensions\.servo_size must be 3 lengths \[m\]"):
         spm.LinkDimensions(servo_size=(0.03, 0.05))
-    with pytest.raises(spm.DesignError):
+    match = r"the proximal sphere \(.*\) must lie inside the distal sphere \(.*= 0\.066 m\)"
+    with pytest.raises(spm.DesignError, match=match):
         spm.LinkDimensions(distal_radius=0.07)  # inside the proximal sphere
 
 
 @pytest.mark.parametrize("build", ["base_axes None", "coaxial string"])
 def test_wrong_types_in_design_constructors(build: str) -> None:
-    with pytest.raises(spm.DesignError):
+    match = {
+        "base_axes None": "^base_axes must hold 3 unit vectors, got None",
+        "coaxial string": "^alpha1 must be an angle in degrees, got 'a'",
+    }[build]
+    with pytest.raises(spm.DesignError, match=match):
         if build == "base_axes None":
             _design(base_axes=None)
         else:
@@ -354,47 +424,97 @@ MALFORMED_TOML = {
     "string dimension": VALID_TOML + '[dimensions]\ndensity = "x"\n',
     "table dimension": VALID_TOML + "[dimensions]\ndensity = {a = 1}\n",
 }
+#: What the message says of each of MALFORMED_TOML.
+MALFORMED_TOML_MATCH = {
+    "not TOML": "not valid TOML",
+    "empty": r"missing table \[kinematics\]",
+    "no [kinematics]": r"missing table \[kinematics\]",
+    "kinematics not a table": r"missing table \[kinematics\]",
+    "array of tables": r"missing table \[kinematics\]",
+    "unknown top-level key": r"unknown key\(s\) \['extra'\]; allowed: \['dimensions', 'kinematics'",
+    "unknown kinematics key": r"\[kinematics\] has unknown key\(s\) \['gamma_deg'\]; allowed",
+    "missing beta_deg": r"\[kinematics\] lacks \['beta_deg'\]",
+    "string angle": "alpha1_deg must be a number",
+    "boolean angle": "alpha1_deg must be a number",
+    "list angle": "alpha1_deg must be a number",
+    "date angle": "alpha1_deg must be a number",
+    "eta not a list": "eta_deg must be a list",
+    "eta with a string": "eta_deg must be a number",
+    "base_axes flat": "base_axes must be a list of 3 vectors",
+    "dimensions not a table": r"\[dimensions\] must be a table",
+    "unknown dimension": r"\[dimensions\] has unknown key\(s\) \['foo'\]; allowed",
+    "string dimension": "density must be a number",
+    "table dimension": "density must be a number",
+}
 
 
 @pytest.mark.parametrize("case", MALFORMED_TOML)
 def test_malformed_toml(case: str, tmp_path: Path) -> None:
     path = tmp_path / "design.toml"
     path.write_text(MALFORMED_TOML[case], encoding="utf-8")
-    with pytest.raises(spm.FileFormatError) as info:
+    message = MALFORMED_TOML_MATCH[case]
+    with pytest.raises(spm.FileFormatError, match=f": {message}") as info:
         spm.SPMDesign.load(path)
     assert info.value.path == str(path)
     assert str(path) in str(info.value)
     assert isinstance(info.value, ValueError)
-    with pytest.raises(spm.FileFormatError):
+    with pytest.raises(spm.FileFormatError, match=f"^{message}"):
         spm.SPMDesign.from_toml(MALFORMED_TOML[case])
 
 
 @pytest.mark.parametrize(
-    "text",
-    [VALID_TOML + "[dimensions]\ndensity = [1, 2]\n", "name = 3\n" + VALID_TOML],
+    ("text", "message"),
+    [
+        (
+            VALID_TOML + "[dimensions]\ndensity = [1, 2]\n",
+            r"^density must be a number, got \[1, 2\]",
+        ),
+        ("name = 3\n" + VALID_TOML, "^name must be a string, got 3"),
+    ],
     ids=["list for a scalar dimension", "number for the name"],
 )
-def test_wrongly_typed_toml_values(text: str) -> None:
-    with pytest.raises(spm.FileFormatError):
+def test_wrongly_typed_toml_values(text: str, message: str) -> None:
+    with pytest.raises(spm.FileFormatError, match=message):
         spm.SPMDesign.from_toml(text)
 
 
+_BETWEEN = "it must lie strictly between 0 and 180 deg"
+
+
 @pytest.mark.parametrize(
-    "text",
+    ("text", "message"),
     [
-        "[kinematics]\nalpha1_deg = 0\nalpha2_deg = 90\nbeta_deg = 90\n",
-        "[kinematics]\nalpha1_deg = nan\nalpha2_deg = 90\nbeta_deg = 90\n",
-        "[kinematics]\nalpha1_deg = 45\nalpha2_deg = 90\nbeta_deg = 180\n",
-        VALID_TOML + "eta_deg = [0, 120]\n",
-        VALID_TOML + "base_axes = [[0, 0, 0], [0, 0, -1], [0, 0, -1]]\n",
-        VALID_TOML + "[dimensions]\ndensity = -1\n",
-        "[kinematics]\nalpha1_deg = 10\nalpha2_deg = 20\nbeta_deg = 90\n",
+        (
+            "[kinematics]\nalpha1_deg = 0\nalpha2_deg = 90\nbeta_deg = 90\n",
+            f"alpha1 = 0 deg is impossible: {_BETWEEN}",
+        ),
+        (
+            "[kinematics]\nalpha1_deg = nan\nalpha2_deg = 90\nbeta_deg = 90\n",
+            "alpha1 must be a finite angle",
+        ),
+        (
+            "[kinematics]\nalpha1_deg = 45\nalpha2_deg = 90\nbeta_deg = 180\n",
+            f"beta = 180 deg is impossible: {_BETWEEN}",
+        ),
+        (VALID_TOML + "eta_deg = [0, 120]\n", "eta must be 3 finite leg azimuths"),
+        (
+            VALID_TOML + "base_axes = [[0, 0, 0], [0, 0, -1], [0, 0, -1]]\n",
+            r"base_axes\[0\] must be non-zero",
+        ),
+        (
+            VALID_TOML + "[dimensions]\ndensity = -1\n",
+            r"dimensions\.density must be a finite positive number, got -1\.0",
+        ),
+        (
+            "[kinematics]\nalpha1_deg = 10\nalpha2_deg = 20\nbeta_deg = 90\n",
+            "leg 1 cannot be assembled at home",
+        ),
     ],
 )
-def test_impossible_values_in_toml(text: str, tmp_path: Path) -> None:
+def test_impossible_values_in_toml(text: str, message: str, tmp_path: Path) -> None:
     path = tmp_path / "design.toml"
     path.write_text(text, encoding="utf-8")
-    with pytest.raises(spm.DesignError) as info:
+    with pytest.raises(spm.DesignError, match=f"design.toml: {message}") as info:
         spm.SPMDesign.load(path)
     assert str(path) in str(info.value)
     assert info.value.parameter is not None
@@ -403,8 +523,12 @@ def test_impossible_values_in_toml(text: str, tmp_path: Path) -> None:
 def test_unreadable_design_files(tmp_path: Path) -> None:
     binary = tmp_path / "binary.toml"
     binary.write_bytes(b"\xff\xfe\x00 not text")
-    for path in (tmp_path / "missing.toml", binary, tmp_path):
-        with pytest.raises(spm.FileFormatError) as info:
+    for path, message in (
+        (tmp_path / "missing.toml", "cannot read design file: No such file or directory"),
+        (binary, "design file is not UTF-8 text"),
+        (tmp_path, "cannot read design file"),
+    ):
+        with pytest.raises(spm.FileFormatError, match=f": {message}") as info:
             spm.SPMDesign.load(path)
         assert info.value.path == str(path)
 

@@ -347,9 +347,8 @@ def test_sdk_pitfalls_on_the_emulated_bus(bus: EmulatedBus) -> None:
         group = sdk.GroupSyncRead(port, packets, 132, 4)
         for i in IDS:
             group.addParam(i)
-        start = time.perf_counter()
-        assert group.txRxPacket() == sdk.COMM_RX_TIMEOUT
-        assert time.perf_counter() - start < 1.0
+        assert group.txRxPacket() == sdk.COMM_RX_TIMEOUT  # one try, then it gives up
+        assert [(e.instruction, e.accepted) for e in bus.log()] == [("SYNC_READ", True)]
         assert [group.getData(i, 132, 4) for i in IDS] == [0, 0, 0]
         bus.clear_faults()
         # 2. The SDK sends -131073 without byte stuffing: the servo drops the packet.

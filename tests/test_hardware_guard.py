@@ -22,6 +22,7 @@ import pytest
 pytest.importorskip("dynamixel_sdk")
 
 from _hardware_data import BAUD, IDS, LATENCY_MS
+from _prototype_truth import A1, A2, ETA, V0, U, rot, w_axes
 
 import spm_pin as spm
 from spm_pin.errors import UnsafeCommandError
@@ -53,34 +54,7 @@ MAX_SPEED = 3.0  # [rad/s]
 MAX_ACCEL = 20.0  # [rad/s^2]
 
 # ------------------------------------------------------------ independent kinematics
-A1, A2, BETA = np.radians(45.0), np.radians(90.0), np.radians(90.0)
-ETA = np.radians([0.0, 120.0, 240.0])
-U = np.array([0.0, 0.0, -1.0])
-V0 = np.stack(
-    [
-        np.sin(BETA) * np.cos(ETA - np.pi / 2),
-        np.sin(BETA) * np.sin(ETA - np.pi / 2),
-        np.full(3, np.cos(BETA)),
-    ],
-    axis=1,
-)
-
-
-def w_axes(theta: np.ndarray) -> np.ndarray:
-    phi = ETA - np.asarray(theta, dtype=float)
-    return np.stack(
-        [np.sin(A1) * np.cos(phi), np.sin(A1) * np.sin(phi), np.full(3, -np.cos(A1))], axis=1
-    )
-
-
-def rot(vec: np.ndarray) -> np.ndarray:
-    vec = np.asarray(vec, dtype=float)
-    angle = float(np.linalg.norm(vec))
-    if angle == 0.0:
-        return np.eye(3)
-    k = vec / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+# The prototype's constants and w_i(theta) come from tests/_prototype_truth.py.
 
 
 def ik_home(R: np.ndarray) -> np.ndarray:

@@ -81,7 +81,7 @@ def test_sdk_txpacket_does_not_stuff() -> None:
     value = ct.XM540_W150["Goal Position"].encode(-131073)
     assert value[:3] == b"\xff\xff\xfd"
     assert SDK.write4ByteTxOnly(Port(), 1, 116, -131073 & 0xFFFFFFFF) == 0
-    with pytest.raises(ProtocolError):
+    with pytest.raises(ProtocolError, match="FF FF FD inside a packet body is not followed by FD"):
         parse_packet(Port.sent)  # a correct receiver must reject it
     assert parse_packet(instruction_packet(1, 0x03, b"\x74\x00" + value)).parameters[2:] == value
 

@@ -212,7 +212,8 @@ def test_unreachable_rotation_raises_with_the_leg(prototype: spm.SPMDesign, leg:
     R = _tilt_away(leg)
     expected, _ = _leg_reachable_by_geometry(prototype, R)
     assert list(expected) == [i != leg - 1 for i in range(3)]
-    with pytest.raises(spm.UnreachableError) as info:
+    match = rf"orientation unreachable: leg {leg} cannot close \(P\^2 \+ Q\^2 - S\^2 = .* < 0\)"
+    with pytest.raises(spm.UnreachableError, match=match) as info:
         spm.inverse_kinematics(R, prototype)
     assert info.value.leg == leg
     assert f"leg {leg}" in str(info.value)
@@ -224,7 +225,8 @@ def test_unreachable_rotation_names_the_first_failing_leg(prototype: spm.SPMDesi
     R = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # 80 deg about y
     expected, _ = _leg_reachable_by_geometry(prototype, R)
     assert not expected[1] and not expected[2] and expected[0]
-    with pytest.raises(spm.UnreachableError) as info:
+    match = "orientation unreachable: leg 2 cannot close"
+    with pytest.raises(spm.UnreachableError, match=match) as info:
         spm.inverse_kinematics(R, prototype)
     assert info.value.leg == 2
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -609,7 +610,8 @@ def test_unreachable(robot: SPMRobot) -> None:
         for label in ("+++/+", "+++/-", "---/+", "---/-", "+-+/+", "-+-/-")
         if label not in spm.forward_kinematics_all(np.zeros(3), robot.design).labels
     )
-    with pytest.raises(spm.UnreachableError):
+    match = rf"theta = \[0\.0, 0\.0, 0\.0\] deg has no assembly in mode '{re.escape(missing)}'"
+    with pytest.raises(spm.UnreachableError, match=match):
         robot.configuration(np.zeros(3), mode=missing)
 
 
@@ -665,3 +667,22 @@ def test_any_input_closes_or_is_unreachable(theta: list[float]) -> None:
         return
     assert robot.closure_residual(q) <= TOL["closure"]
     np.testing.assert_array_equal(q[robot.actuated_q_idx], theta)
+
+
+def test_the_robot_receives_its_collision_checker() -> None:
+    """spm.build_robot gives the robot the collision layer's checker; the model layer
+    alone builds a robot without one, which says how to get one."""
+    from spm_pin.collision import CollisionChecker, checker_of
+    from spm_pin.model.robot import build_robot as build_model
+
+    robot = spm.build_robot()
+    assert isinstance(robot.collision_checker, CollisionChecker)
+    assert robot.collision_checker is robot.collision_checker  # made once, kept
+    bare = build_model()
+    with pytest.raises(spm.InputError, match=r"no self-collision checker: build it with spm\."):
+        bare.collisions(np.zeros(3))
+    theta = np.radians([0.0, 0.0, 80.0])  # proximal links 2 and 3 meet
+    assert checker_of(bare).collisions(theta) == robot.collisions(theta)
+    assert bare.collisions(theta) == robot.collisions(theta)  # kept on the robot now
+    with pytest.raises(spm.InputError, match="checker_factory must be callable"):
+        build_model(checker_factory=42)  # type: ignore[arg-type]

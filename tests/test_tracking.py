@@ -155,7 +155,8 @@ def test_single_sample(prototype: spm.SPMDesign) -> None:
 
 def test_unreachable_first_sample(prototype: spm.SPMDesign) -> None:
     path = _line(np.radians([0.0, 0.0, 200.0]), np.zeros(3), 5)
-    with pytest.raises(spm.UnreachableError):
+    match = r"no home-mode assembly at the first sample, .*; pass start= to follow another mode"
+    with pytest.raises(spm.UnreachableError, match=match):
         spm.track(path, prototype)
     # With an explicit start, a non-home mode is followed instead.
     every = spm.forward_kinematics_all(path[0], prototype)

@@ -36,6 +36,7 @@ TOL = {
 }
 VIEWPORT = {"width": 640, "height": 480}
 WAIT_S = 10.0  # for the live page to show a change
+POLL_S = 0.02  # between two looks at the page
 DARK = 40  # a pixel whose channels are all below this is black
 
 DEMO_DEG = [60.0, 90.0, 120.0]
@@ -192,10 +193,13 @@ def node_matrix(page: Any, path: str) -> np.ndarray:
 
 
 def wait_until(condition: Callable[[], bool], what: str) -> None:
-    deadline = time.monotonic() + WAIT_S
-    while not condition():
-        assert time.monotonic() < deadline, f"the page did not show {what} in {WAIT_S} s"
-        time.sleep(0.02)
+    """Poll ``condition`` up to WAIT_S / POLL_S times (a bound on the wait, not a
+    timing assertion: a slow machine only polls longer in wall time)."""
+    for _ in range(round(WAIT_S / POLL_S)):
+        if condition():
+            return
+        time.sleep(POLL_S)
+    assert condition(), f"the page did not show {what} after {round(WAIT_S / POLL_S)} polls"
 
 
 def show(viz: Visualizer, page: Any, x: Any, **kwargs: Any) -> list[tuple[str, str]]:
@@ -368,7 +372,8 @@ def test_screenshot_of_a_saved_scene(browser: Any, robot: SPMRobot, tmp_path: Pa
     # some pixels have about the colour of leg 2's proximal link (orange)
     orange = np.all(np.abs(pixels - 255 * np.array(LINK_COLORS["proximal_2"][:3])) < 60, axis=-1)
     assert orange.sum() > 50
-    with pytest.raises(spm.InputError):
+    match = r"^size must be \(width, height\) in pixels, each 16\.\.8192, got \(0, 240\)"
+    with pytest.raises(spm.InputError, match=match):
         screenshot(html, tmp_path / "bad.png", size=(0, 240), browser=browser)
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(FileNotFoundError, match=r"no such HTML file: .*missing\.html"):
         screenshot(tmp_path / "missing.html", tmp_path / "bad.png", browser=browser)

@@ -8,6 +8,7 @@ import concurrent.futures
 import csv
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -244,7 +245,7 @@ def test_save_load_and_plots(coarse: WorkspaceMap, tmp_path: Path) -> None:
     assert int(rows[k]["reachable"]) == 1
     summary = json.loads(written["summary"].read_text())
     assert summary["summary"]["points"] == len(coarse)
-    with pytest.raises(spm.FileFormatError):
+    with pytest.raises(spm.FileFormatError, match=r"workspace\.csv: not a workspace map"):
         WorkspaceMap.load(written["csv"])
 
 
@@ -282,7 +283,7 @@ def test_cli_workspace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     ],
 )
 def test_bad_input(kwargs: dict[str, Any], argument: str) -> None:
-    with pytest.raises(spm.InputError) as info:
+    with pytest.raises(spm.InputError, match=rf"\b{re.escape(argument)}\b") as info:
         workspace_map(progress=False, **kwargs)
     assert info.value.argument == argument
     assert argument.split(".")[-1] in str(info.value)

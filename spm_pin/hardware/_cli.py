@@ -101,7 +101,7 @@ def _config(args: argparse.Namespace) -> Any:
 
 
 def _robot(args: argparse.Namespace) -> Any:
-    from ..model.robot import build_robot
+    from ..collision import build_robot
 
     return build_robot(_design(args))
 

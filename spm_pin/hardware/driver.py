@@ -34,8 +34,9 @@ Known defects of dynamixel-sdk 4.1 and what the driver does about them:
 * The packet timeout is a wall-clock (``time.time``) deadline checked after a read:
   a clock step fakes or hides a timeout, and a controller preempted between its last
   read and the check gives up on a reply that is already waiting (seen on a loaded
-  machine). The driver's port measures the deadline on the monotonic clock and
-  declares it passed only after a read begun past the deadline came back short.
+  machine). The driver's port measures the deadline on the monotonic clock (or the
+  ``clock`` given to :class:`ServoBus`) and declares it passed only after a read
+  begun past the deadline came back short.
 """
 
 from __future__ import annotations
@@ -122,11 +123,13 @@ def _port_class() -> type:
 
     class _Port(sdk.PortHandler):  # type: ignore[misc,name-defined]
         latency_ms = 16.0
+        #: Clock of the packet timeout [s] (ServoBus sets its own ``clock``).
+        clock: Callable[[], float] = staticmethod(time.monotonic)
         #: Clock when the last read of the port began [ms] (see isPacketTimeout).
         last_read_time = -math.inf
 
         def getCurrentTime(self) -> float:  # the SDK's name; it uses the wall clock
-            return time.monotonic() * 1000.0
+            return self.clock() * 1000.0
 
         def setPacketTimeout(self, packet_length: int) -> None:  # the SDK's name
             self.packet_start_time = self.getCurrentTime()
@@ -304,6 +307,8 @@ class ServoBus:
         retries: Extra attempts after a failed transaction (timeout, garbled reply).
         fast_sync_read: Use FAST_SYNC_READ (True), never (False), or when every
             servo's firmware has it (None, decided by :meth:`identify`).
+        clock: Clock of the packet timeout and of the wait after a reboot [s]
+            (default :func:`time.monotonic`; a test may pass a fake one).
 
     Attributes:
         alerts: Servo id -> True while its status packets carry the alert bit.
@@ -321,6 +326,7 @@ class ServoBus:
         latency_timer_ms: float = 16.0,
         retries: int = 2,
         fast_sync_read: bool | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         if not isinstance(port, str) or not port:
             raise InputError(
@@ -356,12 +362,19 @@ class ServoBus:
                 argument="retries",
                 value=retries,
             )
+        if not callable(clock):
+            raise InputError(
+                f"clock must be a callable returning seconds, got {clock!r}",
+                argument="clock",
+                value=clock,
+            )
         self.port_name = port
         self.ids = id_list
         self.baudrate = baudrate
         self.latency_timer_ms = float(latency_timer_ms)
         self.retries = retries
         self.fast_sync_read = fast_sync_read
+        self.clock = clock
         self.alerts: dict[int, bool] = dict.fromkeys(id_list, False)
         self.stuffing_workarounds = 0
         self.stats: dict[str, int] = {"transactions": 0, "retries": 0, "failures": 0}
@@ -392,6 +405,7 @@ class ServoBus:
         sdk = load_sdk()
         port = _port_class()(self.port_name)
         port.latency_ms = self.latency_timer_ms
+        port.clock = self.clock
         port.baudrate = self.baudrate
         try:
             opened = port.openPort()
@@ -761,7 +775,7 @@ class ServoBus:
             self._check_error(servo_id, error, operation)
 
         self._attempts(operation, attempt, servo_id)
-        deadline = time.monotonic() + timeout
+        deadline = self.clock() + timeout
         while True:
             try:
                 _, result, error = handler.ping(self._port, servo_id)
@@ -774,7 +788,7 @@ class ServoBus:
             if result == 0:
                 self.alerts[servo_id] = bool(error & ALERT_BIT)
                 return
-            if time.monotonic() > deadline:
+            if self.clock() > deadline:
                 raise CommunicationError(
                     f"servo {servo_id} did not answer within {timeout:g} s after REBOOT",
                     servo_id=servo_id,

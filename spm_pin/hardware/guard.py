@@ -152,7 +152,7 @@ class SafetyGuard:
         cache_size: int = 8192,
     ) -> None:
         if robot is None:
-            from ..model.robot import build_robot
+            from ..collision import build_robot
 
             robot = build_robot()
         if not callable(getattr(robot, "collisions", None)):

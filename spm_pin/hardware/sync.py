@@ -274,7 +274,7 @@ class ServoSync:
             if guard is not None:
                 robot = guard.robot
             else:
-                from ..model.robot import build_robot
+                from ..collision import build_robot
 
                 robot = build_robot()
         self.bus = bus

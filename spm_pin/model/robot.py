@@ -29,7 +29,8 @@ constraint residuals.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import Protocol
 
 import coal
 import numpy as np
@@ -42,9 +43,6 @@ from ..kinematics import forward_kinematics, forward_kinematics_all, select_asse
 from ..kinematics._common import as_rotation, as_theta, check_design, require_angles
 from .geometry import LINK_NAMES, LinkInertia, link_inertias, link_meshes
 
-if TYPE_CHECKING:
-    from ..collision import CollisionChecker
-
 __all__ = [
     "ACTUATED_JOINTS",
     "CLOSURE_TOL",
@@ -52,7 +50,9 @@ __all__ = [
     "END_BODIES",
     "JOINT_NAMES",
     "PASSIVE_JOINTS",
+    "CheckerFactory",
     "SPMRobot",
+    "SelfCollision",
     "build_robot",
 ]
 
@@ -124,6 +124,24 @@ def _pin_inertia(inertia: LinkInertia, fraction: float = 1.0) -> pin.Inertia:
     )
 
 
+class SelfCollision(Protocol):
+    """What the robot asks of its self-collision checker (the collision layer's
+    :class:`~spm_pin.collision.CollisionChecker` provides it)."""
+
+    @property
+    def fixed_clearance(self) -> float: ...
+
+    def collisions(self, x: npt.ArrayLike, *, margin: float = 0.0) -> list[tuple[str, str]]: ...
+
+    def distances(self, x: npt.ArrayLike) -> dict[tuple[str, str], float]: ...
+
+    def min_clearance(self, x: npt.ArrayLike) -> float: ...
+
+
+#: Makes the self-collision checker of a robot.
+CheckerFactory = Callable[["SPMRobot"], SelfCollision]
+
+
 class SPMRobot:
     """A spherical parallel manipulator as a Pinocchio model with its loop closures.
 
@@ -159,13 +177,30 @@ class SPMRobot:
         end_frames: Frame ids of :data:`END_BODIES` (the platform as seen by legs 1, 2, 3).
     """
 
-    def __init__(self, design: SPMDesign | str | None = None) -> None:
-        """Build the model; prefer :func:`build_robot`.
+    def __init__(
+        self,
+        design: SPMDesign | str | None = None,
+        *,
+        checker_factory: CheckerFactory | None = None,
+    ) -> None:
+        """Build the model; prefer :func:`spm_pin.build_robot`.
 
         Args:
             design: The SPM (default: the prototype).
+            checker_factory: Makes the robot's self-collision checker on first use
+                (:attr:`collision_checker`); :func:`spm_pin.build_robot` passes
+                :class:`spm_pin.collision.CollisionChecker`. The model layer does not
+                import the collision layer above it: it receives it.
         """
         design = check_design(design)
+        if checker_factory is not None and not callable(checker_factory):
+            raise InputError(
+                f"checker_factory must be callable (e.g. CollisionChecker), got "
+                f"{type(checker_factory).__name__}",
+                argument="checker_factory",
+                value=checker_factory,
+            )
+        self._checker_factory = checker_factory
         self.design: SPMDesign = design
         inertias = link_inertias(design)
         missing = [name for name in LINK_NAMES if name not in inertias]
@@ -551,17 +586,27 @@ class SPMRobot:
 
     # ------------------------------------------------------------------ collision
     @property
-    def collision_checker(self) -> CollisionChecker:
+    def collision_checker(self) -> SelfCollision:
         """The self-collision checker of this robot, made on first use and kept.
 
-        A :class:`spm_pin.collision.CollisionChecker`; not thread-safe: threads make
-        their own with ``CollisionChecker(robot)``.
-        """
-        checker: CollisionChecker | None = self.__dict__.get("_collision_checker")
-        if checker is None:
-            from ..collision import CollisionChecker
+        A :class:`spm_pin.collision.CollisionChecker` for robots from
+        :func:`spm_pin.build_robot`; not thread-safe: threads make their own with
+        ``CollisionChecker(robot)``.
 
-            checker = CollisionChecker(self)
+        Raises:
+            InputError: the robot was built without a checker factory (by
+                :func:`spm_pin.model.robot.build_robot` or ``SPMRobot(design)``).
+        """
+        checker: SelfCollision | None = self.__dict__.get("_collision_checker")
+        if checker is None:
+            if self._checker_factory is None:
+                raise InputError(
+                    "this robot has no self-collision checker: build it with "
+                    "spm.build_robot(design) (or pass checker_factory=CollisionChecker "
+                    "from spm_pin.collision)",
+                    argument="checker_factory",
+                )
+            checker = self._checker_factory(self)
             self.__dict__["_collision_checker"] = checker
         return checker
 
@@ -626,11 +671,17 @@ def _is_mode_label(mode: str) -> bool:
     )
 
 
-def build_robot(design: SPMDesign | str | None = None) -> SPMRobot:
+def build_robot(
+    design: SPMDesign | str | None = None, *, checker_factory: CheckerFactory | None = None
+) -> SPMRobot:
     """The SPM as a Pinocchio model with geometry and loop closures.
+
+    :func:`spm_pin.build_robot` (the one to use) is
+    :func:`spm_pin.collision.build_robot`: this one with the self-collision checker.
 
     Args:
         design: The SPM (default: the prototype).
+        checker_factory: See :class:`SPMRobot`.
 
     Returns:
         :class:`SPMRobot`.
@@ -642,4 +693,4 @@ def build_robot(design: SPMDesign | str | None = None) -> SPMRobot:
         >>> robot.closure_residual(q) < 1e-12
         True
     """
-    return SPMRobot(design)
+    return SPMRobot(design, checker_factory=checker_factory)

@@ -31,11 +31,12 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ..collision import build_robot, checker_of
 from ..errors import InputError, UnreachableError
 from ..kinematics import track
 from ..kinematics.assembly import home_mode_label, select_assembly
 from ..model.geometry import LINK_NAMES, link_meshes
-from ..model.robot import SPMRobot, build_robot
+from ..model.robot import SPMRobot
 from ._scene import Scene
 from .server import MeshcatServer, ViewerError
 
@@ -440,7 +441,7 @@ class Visualizer:
     def _collisions(self, q: FloatArray) -> list[LinkPair]:
         if not self.check_collisions:
             return []
-        return self.robot.collisions(q, margin=self.collision_margin)
+        return checker_of(self.robot).collisions(q, margin=self.collision_margin)
 
     def _show_colliding(self, links: frozenset[str]) -> None:
         for name in LINK_NAMES:
