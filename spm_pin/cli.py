@@ -43,7 +43,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-import json
 import math
 import os
 import re
@@ -53,8 +52,19 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
-import numpy.typing as npt
 
+from ._records import (
+    FloatArray,
+    Record,
+    fk_all_record,
+)
+from ._records import assembly_label as _assembly_label
+from ._records import checked_links as _checked_links
+from ._records import dumps as _dumps
+from ._records import orientation as _orientation
+from ._records import plain as _plain
+from ._records import render as _render
+from ._records import worst_sample as _worst_sample
 from ._version import __version__
 from .design import SPMDesign
 from .errors import SPMError, UnreachableError
@@ -65,13 +75,11 @@ from .kinematics import (
     inverse_kinematics,
     jacobian,
 )
-from .kinematics._common import ANGLE_LIMIT, as_rotation, mode_label
+from .kinematics._common import ANGLE_LIMIT, as_rotation
 from .kinematics.fk import satisfies_home_rule
 from .rotations import (
     matrix_from_quaternion,
     matrix_from_rpy,
-    quaternion_from_matrix,
-    rpy_from_matrix,
 )
 
 __all__ = [
@@ -85,8 +93,6 @@ __all__ = [
     "main",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-Record = dict[str, Any]
 
 #: Exit status for bad arguments and library errors.
 EXIT_USAGE = 2
@@ -225,105 +231,9 @@ def _add_margin_option(parser: argparse.ArgumentParser, text: str) -> None:
     parser.add_argument("--margin-mm", type=_number, default=0.0, metavar="MM", help=text)
 
 
-# ----------------------------------------------------------------------- JSON/text
-def _plain(value: Any) -> Any:
-    """Lists, floats, ints, bools, strings and None (for NaN/inf) from numpy data."""
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        number = float(value) + 0.0  # + 0.0 turns -0.0 into 0.0
-        return number if math.isfinite(number) else None
-    return value
-
-
-def _dumps(record: Record) -> str:
-    return json.dumps(_plain(record), indent=2, allow_nan=False)
-
-
-_NUMBER_WIDTH = 12
-
-
-def _format_number(key: str, value: float) -> str:
-    if any(word in key for word in ("residual", "error", "deviation")):
-        return f"{value:{_NUMBER_WIDTH}.3e}"
-    return f"{round(value, 6) + 0.0:{_NUMBER_WIDTH}.6f}"
-
-
-def _format_scalar(key: str, value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return _format_number(key, value)
-    return str(value)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _render(record: Record, indent: str = "") -> list[str]:
-    """Text lines for a plain record: ``key  value``, numbers aligned with 6 decimals.
-
-    Keys whose value is None (``null`` in JSON) are left out.
-    """
-    record = {key: value for key, value in record.items() if value is not None}
-    width = max((len(key) for key in record), default=0) + 2
-    lines: list[str] = []
-    for key, value in record.items():
-        head = f"{indent}{key:<{width}}"
-        if isinstance(value, dict):
-            lines.append(f"{indent}{key}:")
-            lines.extend(_render(value, indent + "  "))
-        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
-            # Numbered from 0, as the JSON list and the --mode INDEX options count.
-            for number, item in enumerate(value):
-                lines.append(f"{indent}{key}[{number}]:")
-                lines.extend(_render(item, indent + "  "))
-        elif isinstance(value, list) and value and all(isinstance(v, list) for v in value):
-            for number, row in enumerate(value):
-                prefix = head if number == 0 else " " * len(head)
-                lines.append(prefix + _render_row(key, row))
-        elif isinstance(value, list):
-            lines.append(head + (_render_row(key, value) if value else "none"))
-        else:
-            lines.append(head + _format_scalar(key, value))
-    return lines
-
-
-def _render_row(key: str, row: list[Any]) -> str:
-    if all(_is_number(v) for v in row):
-        return "".join(_format_number(key, float(v)) for v in row)
-    return "  ".join("null" if v is None else _format_scalar(key, v) for v in row)
-
-
 def _emit(record: Record, as_json: bool) -> None:
     text = _dumps(record) if as_json else "\n".join(_render(_plain(record)))
     print(text)
-
-
-# ---------------------------------------------------------------- orientation data
-def _orientation(R: FloatArray) -> Record:
-    """R, roll/pitch/yaw [deg] and the quaternion (w, x, y, z) of a rotation."""
-    return {
-        "R": R,
-        "rpy_deg": np.degrees(rpy_from_matrix(R)),
-        "quaternion_wxyz": quaternion_from_matrix(R),
-    }
-
-
-def _assembly_label(b: FloatArray, det_a: float) -> str:
-    """Assembly-mode label such as ``+++/-``: signs of b_11, b_22, b_33 and det A."""
-    return mode_label(b) + ("/+" if det_a > 0 else "/-")
 
 
 # -------------------------------------------------------------------------------- fk
@@ -428,32 +338,6 @@ def fk_record(theta_deg: Sequence[float], design: SPMDesign, solver: str = "anal
         }
     )
     return record
-
-
-def fk_all_record(theta_deg: Sequence[float], design: SPMDesign) -> Record:
-    """Every real assembly mode of one input [deg], as a record."""
-    modes = forward_kinematics_all(np.radians(np.asarray(theta_deg, dtype=float)), design)
-    count = int(modes.count)
-    labels = modes.labels
-    return {
-        "design": design.name,
-        "theta_deg": list(theta_deg),
-        "reachable": bool(np.any(modes.home)),
-        "count": count,
-        "modes": [
-            {
-                "index": k,
-                "label": labels[k],
-                "home": modes.home[k],
-                "R": modes.R[k],
-                "v": modes.v[k],
-                "b": modes.b[k],
-                "det_a": modes.det_a[k],
-                "residual": modes.residual[k],
-            }
-            for k in range(count)
-        ],
-    }
 
 
 def _run_fk(args: argparse.Namespace) -> int:
@@ -1126,17 +1010,6 @@ def _run_torques(args: argparse.Namespace) -> int:
     return 0
 
 
-def _worst_sample(result: Any, motion: Any, check: Any) -> Record:
-    """The sample and joint nearest to the servo's limits (a ``check_servo`` result)."""
-    t, j = check.worst_sample, check.worst_joint
-    return {
-        "joint": f"u_{j + 1}",
-        "time_s": float(motion.time[t]),
-        "torque_nm": float(result.torque[t, j]),
-        "speed_rpm": float(result.theta_dot[t, j]) * 60.0 / (2.0 * math.pi),
-    }
-
-
 def _add_torques_parser(commands: Any) -> None:
     torques = commands.add_parser(
         "torques",
@@ -1212,15 +1085,6 @@ def collide_record(theta_deg: Sequence[float], design: SPMDesign, margin_m: floa
             for pair, distance in report.distances.items()
         ],
     }
-
-
-def _checked_links(report: Any) -> str:
-    """Which links a :func:`~spm_pin.collision.check_input` report checked, in words."""
-    if report.mode is None:
-        return "proximal links only (no real assembly mode: the other links have no pose)"
-    if report.home:
-        return "every link pair (home assembly mode)"
-    return f"every link pair (assembly mode {report.mode}; the home mode does not exist)"
 
 
 def _run_collide(args: argparse.Namespace) -> int:

@@ -54,19 +54,15 @@ from typing import IO, TYPE_CHECKING, Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from ._records import FloatArray, Record, fk_all_record
+from ._records import assembly_label as _assembly_label
+from ._records import checked_links as _checked_links
+from ._records import dumps as _dumps
+from ._records import orientation as _orientation
+from ._records import plain as _plain
+from ._records import render as _render
+from ._records import worst_sample as _worst_sample
 from ._version import __version__
-from .cli import (
-    FloatArray,
-    Record,
-    _assembly_label,
-    _checked_links,
-    _dumps,
-    _orientation,
-    _plain,
-    _render,
-    _worst_sample,
-    fk_all_record,
-)
 from .design import SPMDesign
 from .errors import InputError
 from .kinematics import (
