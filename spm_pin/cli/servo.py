@@ -21,9 +21,15 @@ from typing import Any
 
 import numpy as np
 
-# The spm command's helpers: spm_pin.cli imports this module only inside build_parser.
-from ..cli import _add_angle_arguments, _add_json_option, _design, _emit, _UsageError
 from ..errors import InputError
+
+# The hardware package is imported inside the functions: `import spm_pin.cli` loads no
+# servo SDK (spm_pin.cli imports this module only inside build_parser).
+from ._options import UsageError as _UsageError
+from ._options import add_angle_arguments as _add_angle_arguments
+from ._options import add_json_option as _add_json_option
+from ._options import design_of as _design
+from ._options import emit as _emit
 
 __all__ = ["add_servo_parser"]
 
@@ -50,7 +56,7 @@ def _positive(text: str) -> float:
 
 # -------------------------------------------------------------------------- emulate
 def _run_emulate(args: argparse.Namespace) -> int:
-    from .emulated_bus import serve
+    from ..hardware.emulated_bus import serve
 
     ids = tuple(args.ids)
     if len(set(ids)) != len(ids):
@@ -90,7 +96,7 @@ def _run_emulate(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------ status/move/follow
 def _config(args: argparse.Namespace) -> Any:
-    from .config import HardwareConfig
+    from ..hardware.config import HardwareConfig
 
     config = HardwareConfig() if args.config is None else HardwareConfig.load(args.config)
     if args.port is not None:
@@ -107,7 +113,7 @@ def _robot(args: argparse.Namespace) -> Any:
 
 
 def _bus(config: Any) -> Any:
-    from .driver import ServoBus
+    from ..hardware.driver import ServoBus
 
     return ServoBus(
         config.port,
@@ -136,9 +142,9 @@ def _state_record(state: Any) -> dict[str, Any]:
 
 
 def _run_status(args: argparse.Namespace) -> int:
-    from .control_table import OPERATING_MODES, HardwareErrorFlag
-    from .guard import SafetyGuard
-    from .joints import JointMap
+    from ..hardware.control_table import OPERATING_MODES, HardwareErrorFlag
+    from ..hardware.guard import SafetyGuard
+    from ..hardware.joints import JointMap
 
     config = _config(args)
     robot = _robot(args)
@@ -184,7 +190,7 @@ def _run_status(args: argparse.Namespace) -> int:
 
 
 def _run_move(args: argparse.Namespace) -> int:
-    from .sync import ServoSync
+    from ..hardware.sync import ServoSync
 
     config = _config(args)
     robot = _robot(args)
@@ -214,7 +220,7 @@ def _run_move(args: argparse.Namespace) -> int:
 
 
 def _run_follow(args: argparse.Namespace) -> int:
-    from .sync import ServoSync
+    from ..hardware.sync import ServoSync
 
     config = _config(args)
     robot = _robot(args)
@@ -290,7 +296,7 @@ def _add_bus_options(parser: argparse.ArgumentParser) -> None:
 
 def add_servo_parser(commands: Any) -> None:
     """Add ``spm servo`` and its subcommands to the ``spm`` subparsers."""
-    from .control_table import BAUD_RATES, XM540_W150
+    from ..hardware.control_table import BAUD_RATES, XM540_W150
 
     servo = commands.add_parser(
         "servo",

@@ -45,42 +45,55 @@ import contextlib
 import dataclasses
 import math
 import os
-import re
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
-from ._records import (
+from .._records import (
     FloatArray,
     Record,
     fk_all_record,
 )
-from ._records import assembly_label as _assembly_label
-from ._records import checked_links as _checked_links
-from ._records import dumps as _dumps
-from ._records import orientation as _orientation
-from ._records import plain as _plain
-from ._records import render as _render
-from ._records import worst_sample as _worst_sample
-from ._version import __version__
-from .design import SPMDesign
-from .errors import SPMError, UnreachableError
-from .kinematics import (
+from .._records import assembly_label as _assembly_label
+from .._records import checked_links as _checked_links
+from .._records import dumps as _dumps
+from .._records import orientation as _orientation
+from .._records import plain as _plain
+from .._records import render as _render
+from .._records import worst_sample as _worst_sample
+from .._version import __version__
+from ..design import SPMDesign
+from ..errors import SPMError, UnreachableError
+from ..kinematics import (
     WORKING_MODE_LABELS,
     forward_kinematics,
     forward_kinematics_all,
     inverse_kinematics,
     jacobian,
 )
-from .kinematics._common import ANGLE_LIMIT, as_rotation
-from .kinematics.fk import satisfies_home_rule
-from .rotations import (
+from ..kinematics._common import as_rotation
+from ..kinematics.fk import satisfies_home_rule
+from ..rotations import (
     matrix_from_quaternion,
     matrix_from_rpy,
 )
+from ._options import EXIT_OVER_LIMITS, EXIT_USAGE
+from ._options import Parser as _Parser
+from ._options import UsageError as _UsageError
+from ._options import add_angle_arguments as _add_angle_arguments
+from ._options import add_design_option as _add_design_option
+from ._options import add_json_option as _add_json_option
+from ._options import add_kind_option as _add_kind_option
+from ._options import add_margin_option as _add_margin_option
+from ._options import add_motion_options as _add_motion_options
+from ._options import add_noise_option as _add_noise_option
+from ._options import design_of as _design
+from ._options import emit as _emit
+from ._options import mode as _mode
+from ._options import number as _number
 
 __all__ = [
     "FK_SOLVERS",
@@ -92,148 +105,6 @@ __all__ = [
     "ik_record",
     "main",
 ]
-
-
-#: Exit status for bad arguments and library errors.
-EXIT_USAGE = 2
-#: Exit status of ``spm torques`` when the motion exceeds the servos' torque-speed
-#: envelope (the report is printed all the same).
-EXIT_OVER_LIMITS = 1
-
-#: Numbers that argparse must treat as positionals, not options: negative decimals
-#: with exponents, -inf/-nan (rejected later with a clear message), working-mode
-#: labels such as ``-+-`` and assembly-mode labels such as ``-+-/+``.
-_NEGATIVE_ARGUMENT = re.compile(
-    r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^-(inf|infinity|nan)$|^-[+-]{2}(/[+-])?$",
-    re.IGNORECASE,
-)
-
-
-class _UsageError(Exception):
-    """A bad command line (reported on one line, exit status 2)."""
-
-
-class _Parser(argparse.ArgumentParser):
-    """ArgumentParser that raises on errors instead of printing usage and exiting."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        # argparse's own pattern misses "-1e-3" and "-+-"; without this they would be
-        # taken for unknown options.
-        self._negative_number_matcher = _NEGATIVE_ARGUMENT
-
-    def error(self, message: str) -> NoReturn:
-        raise _UsageError(message)
-
-
-# ----------------------------------------------------------------------- arguments
-def _number(text: str) -> float:
-    """A finite number from the command line (argparse ``type``)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not allowed: numbers must be finite")
-    return value
-
-
-#: Largest |input angle| on the command line [deg]: the library's ANGLE_LIMIT.
-ANGLE_LIMIT_DEG = math.degrees(ANGLE_LIMIT)
-
-
-def _angle_deg(text: str) -> float:
-    """An input angle [deg] from the command line (argparse ``type``): finite and within
-    the library's range, said in degrees."""
-    value = _number(text)
-    if abs(value) > ANGLE_LIMIT_DEG:
-        raise argparse.ArgumentTypeError(
-            f"{text!r} is out of range: input angles must lie within +-{ANGLE_LIMIT_DEG:,.0f} "
-            f"deg ({ANGLE_LIMIT:g} rad, {ANGLE_LIMIT / (2 * math.pi):.0f} turns), where "
-            "double precision keeps the kinematics within their 1e-12 tolerance"
-        )
-    return value
-
-
-def _mode(text: str) -> int | str:
-    """A working mode: an index 0..7 or a label such as ``+-+`` (checked by the library)."""
-    return int(text) if text.isdigit() else text
-
-
-def _design(args: argparse.Namespace) -> SPMDesign:
-    """The design named by ``--design NAME|FILE`` or ``--preset`` (default: the prototype).
-
-    ``--design`` takes a preset name or a design file (:meth:`SPMDesign.from_spec`: a
-    bare preset name is the preset even if a file of that name exists; ``./NAME`` is
-    the file).
-    """
-    spec: str | None = getattr(args, "design", None)
-    if spec is not None:
-        return SPMDesign.from_spec(spec)
-    return SPMDesign.preset(getattr(args, "preset", None) or "prototype")
-
-
-def _add_angle_arguments(parser: argparse.ArgumentParser) -> None:
-    """The positionals T1 T2 T3: input angles [deg]."""
-    for i in (1, 2, 3):
-        parser.add_argument(f"T{i}", type=_angle_deg, help=f"input angle theta_{i} [deg]")
-
-
-def _add_design_option(parser: argparse._ActionsContainer) -> None:
-    parser.add_argument(
-        "--design",
-        metavar="NAME|FILE",
-        help=f"a preset ({', '.join(SPMDesign.preset_names())}) or a design TOML file "
-        "(default: the prototype; see 'spm design')",
-    )
-
-
-def _add_motion_options(parser: argparse.ArgumentParser, *, to_required: bool) -> None:
-    """--from and --to: the input angles [deg] at the start and the end of a motion."""
-    parser.add_argument(
-        "--from",
-        dest="from_deg",
-        nargs=3,
-        type=_angle_deg,
-        default=[0.0, 0.0, 0.0],
-        metavar=("T1", "T2", "T3"),
-        help="input angles at the start [deg] (default: 0 0 0)",
-    )
-    parser.add_argument(
-        "--to",
-        dest="to_deg",
-        nargs=3,
-        type=_angle_deg,
-        required=to_required,
-        metavar=("T1", "T2", "T3"),
-        help="input angles at the end [deg]",
-    )
-
-
-def _add_json_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
-
-
-def _add_kind_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--kind",
-        choices=["quaternion", "axes"],
-        default="quaternion",
-        help="what the sensor measures (default: quaternion)",
-    )
-
-
-def _add_noise_option(parser: argparse.ArgumentParser, text: str) -> None:
-    parser.add_argument("--noise-deg", type=_number, default=0.5, metavar="D", help=text)
-
-
-def _add_margin_option(parser: argparse.ArgumentParser, text: str) -> None:
-    parser.add_argument("--margin-mm", type=_number, default=0.0, metavar="MM", help=text)
-
-
-def _emit(record: Record, as_json: bool) -> None:
-    text = _dumps(record) if as_json else "\n".join(_render(_plain(record)))
-    print(text)
 
 
 # -------------------------------------------------------------------------------- fk
@@ -263,9 +134,9 @@ def _fk_projection(theta: FloatArray, design: SPMDesign) -> FKSolution:
     Cold start at home, path following from home if Newton fails. The residual is the
     norm of the two welds' errors [rad]; R is the platform frame's rotation.
     """
-    from .closure import ClosedLoop
-    from .errors import ConvergenceError
-    from .model.robot import build_robot
+    from ..closure import ClosedLoop
+    from ..errors import ConvergenceError
+    from ..model.robot import build_robot
 
     robot = build_robot(design)
     try:
@@ -442,7 +313,7 @@ def _run_design(args: argparse.Namespace) -> int:
 # ------------------------------------------------------------------------------ demo
 def _run_demo(args: argparse.Namespace) -> int:
     # Imported here: the demo gathers every layer (Pinocchio, MuJoCo, meshcat, plots).
-    from .demo import DemoContext, run_demo
+    from ..demo import DemoContext, run_demo
 
     changes: Record = {"out": Path(args.out)}
     if args.workspace_step is not None:
@@ -461,7 +332,7 @@ def _run_demo(args: argparse.Namespace) -> int:
 def _run_export(args: argparse.Namespace) -> int:
     design = _design(args)
     # Imported here: the model layer (trimesh) is not needed by the other commands.
-    from .model.export import export
+    from ..model.export import export
 
     written = export(design, args.out)
     if args.json:
@@ -485,8 +356,8 @@ def _run_export(args: argparse.Namespace) -> int:
 def _visualizer(args: argparse.Namespace) -> Any:
     """A :class:`~spm_pin.viz.Visualizer` of the chosen design with the chosen overlays."""
     try:  # imported here: meshcat is an optional dependency (the viz extra)
-        from .collision import build_robot
-        from .viz import Visualizer
+        from ..collision import build_robot
+        from ..viz import Visualizer
     except ImportError as exc:
         raise _UsageError(str(exc)) from exc
     robot = build_robot(_design(args))
@@ -630,7 +501,7 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     import importlib.util
     import warnings
 
-    from . import calibration
+    from .. import calibration
 
     if args.no_plot and args.plot is not None:
         raise _UsageError("--plot and --no-plot exclude each other")
@@ -640,7 +511,7 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     joints = None
     if args.servo_config is not None:
         # The configuration alone: spm_pin.hardware imports its SDK only to open a port.
-        from .hardware.config import HardwareConfig
+        from ..hardware.config import HardwareConfig
 
         servo_config = HardwareConfig.load(args.servo_config)
         joints = calibration.JointConvention.from_servo_config(servo_config)
@@ -715,7 +586,7 @@ def _run_calibrate(args: argparse.Namespace) -> int:
 
 
 def _run_plan_poses(args: argparse.Namespace) -> int:
-    from . import calibration
+    from .. import calibration
 
     if args.count < 1:
         raise _UsageError(f"N must be a positive number of poses, got {args.count}")
@@ -752,7 +623,7 @@ def _run_plan_poses(args: argparse.Namespace) -> int:
 
 
 def _run_synth_readings(args: argparse.Namespace) -> int:
-    from . import calibration
+    from .. import calibration
 
     design = _design(args)
     if args.poses is not None:
@@ -793,7 +664,7 @@ def _run_synth_readings(args: argparse.Namespace) -> int:
 
 def _add_calibration_parsers(commands: Any) -> None:
     """``spm calibrate``, ``spm plan-poses`` and ``spm synth-readings``."""
-    from .calibration import PARAMETER_GROUPS, PARAMETER_NAMES
+    from ..calibration import PARAMETER_GROUPS, PARAMETER_NAMES
 
     names = f"names ({', '.join(PARAMETER_NAMES)}) or groups ({', '.join(PARAMETER_GROUPS)})"
     calibrate = commands.add_parser(
@@ -943,7 +814,7 @@ def _add_calibration_parsers(commands: Any) -> None:
 # --------------------------------------------------------------------------- torques
 def _run_torques(args: argparse.Namespace) -> int:
     # Imported here: Pinocchio (and matplotlib for --plot) only for this command.
-    from .dynamics import (
+    from ..dynamics import (
         XM540_W150,
         ClosedLoopDynamics,
         Trajectory,
@@ -951,7 +822,7 @@ def _run_torques(args: argparse.Namespace) -> int:
         inverse_dynamics,
         plot_torques,
     )
-    from .model.robot import build_robot
+    from ..model.robot import build_robot
 
     design = _design(args)
     if args.file is not None:
@@ -1062,7 +933,7 @@ def collide_record(theta_deg: Sequence[float], design: SPMDesign, margin_m: floa
     pairs, lists of two names), ``min_distance_m`` and its ``min_distance_pair``,
     ``margin_m``, ``fixed_clearance_m`` and ``distances`` (every checked pair).
     """
-    from .collision import build_robot, check_input
+    from ..collision import build_robot, check_input
 
     robot = build_robot(design)
     report = check_input(np.radians(np.asarray(theta_deg, dtype=float)), robot, margin=margin_m)
@@ -1102,7 +973,7 @@ def _run_collide(args: argparse.Namespace) -> int:
 
 
 def _run_workspace(args: argparse.Namespace) -> int:
-    from .workspace import WorkspaceSettings, workspace_map
+    from ..workspace import WorkspaceSettings, workspace_map
 
     design = _design(args)
     settings = WorkspaceSettings(
@@ -1351,7 +1222,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_design_option(show)
     show.set_defaults(run=_run_show)
 
-    from .demo import DEMO_SAMPLES  # here: spm_pin.demo imports this module
+    from ..demo import DEMO_SAMPLES  # here: spm_pin.demo imports this module
 
     animate = commands.add_parser(
         "animate",
@@ -1387,7 +1258,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_collision_parsers(commands)
 
     # spm servo ...: defined with the hardware layer (its SDK is imported only when run).
-    from .hardware._cli import add_servo_parser
+    from .servo import add_servo_parser
 
     add_servo_parser(commands)
     return parser
