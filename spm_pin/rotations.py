@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from ._checks import as_rotation
 from .errors import InputError
-from .kinematics._common import as_rotation
 
 __all__ = ["matrix_from_quaternion", "matrix_from_rpy", "quaternion_from_matrix", "rpy_from_matrix"]
 
