@@ -70,17 +70,26 @@ import coal
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import trimesh
 
-from .design import SPMDesign
-from .errors import ConvergenceError, InputError, SPMError, UnreachableError
-from .kinematics import forward_kinematics, select_assembly
-from .kinematics._common import as_theta, check_design, require_angles
-from .model.geometry import LINK_NAMES, link_parts
-from .model.robot import CLOSURE_TOL
+from ..design import SPMDesign
+from ..errors import ConvergenceError, InputError, UnreachableError
+from ..kinematics import forward_kinematics, select_assembly
+from ..kinematics._common import as_theta, require_angles
+from ..model.geometry import LINK_NAMES, link_parts
+from ..model.robot import CLOSURE_TOL
+from ._shapes import ANGLE_TOL as _ANGLE_TOL
+from ._shapes import axis_frame as _axis_frame
+from ._shapes import bvh as _bvh
+from ._shapes import concatenate as _concatenate
+from ._shapes import convex_shape as _convex_shape
+from ._shapes import cross as _cross
+from ._shapes import dot as _dot
+from ._shapes import section_angles as _section_angles
+from ._shapes import turn as _turn
+from .pieces import ConvexPiece, convex_pieces
 
 if TYPE_CHECKING:
-    from .model.robot import SPMRobot
+    from ..model.robot import SPMRobot
 
 __all__ = [
     "ADJACENT_PAIRS",
@@ -133,10 +142,6 @@ PROBE_MIN_SHARE = 0.02
 #: oldest first out).
 PLAN_CACHE = 24
 
-#: Relative tolerance of the volume check of a convex cut.
-_VOLUME_RTOL = 1e-9
-#: Two section angles closer than this are one section [rad].
-_ANGLE_TOL = 1e-7
 #: Axes closer than this are the same axis.
 _AXIS_TOL = 1e-12
 #: Length of the segment that stands for a rotation axis in distance queries [m].
@@ -146,192 +151,6 @@ _AXIS_LENGTH = 10.0
 _EPA_ITERATIONS = 0
 #: EPA iterations where a penetration depth certifies a collision (tables only).
 _EPA_CERTIFY_ITERATIONS = 128
-
-
-# ------------------------------------------------------------------ convex pieces
-@dataclasses.dataclass(frozen=True)
-class ConvexPiece:
-    """One exact convex piece of a link part.
-
-    Attributes:
-        link: Link name.
-        part: Part name (:attr:`spm_pin.model.LinkPart.name`).
-        index: Index of the piece within its part (0 for a convex part).
-        vertices: Vertices of the piece, link frame (= world frame at home) [m],
-            shape (k, 3); the piece is their convex hull.
-    """
-
-    link: str
-    part: str
-    index: int
-    vertices: FloatArray
-
-
-def _convex_shape(points: FloatArray) -> Any:
-    """coal.Convex hull of points (qhull), with triangles for fast support queries."""
-    vector = coal.StdVec_Vec3s()
-    for point in np.ascontiguousarray(points, dtype=np.float64):
-        vector.append(point)
-    return coal.Convex.convexHull(vector, True, None)
-
-
-def _bvh(mesh: trimesh.Trimesh) -> Any:
-    points = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    triangles = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    model = coal.BVHModelOBBRSS()
-    model.beginModel(int(triangles.shape[0]), int(points.shape[0]))
-    model.addVertices(points)
-    model.addTriangles(triangles)
-    model.endModel()
-    return model
-
-
-def _concatenate(meshes: Sequence[trimesh.Trimesh]) -> trimesh.Trimesh:
-    vertices, faces, offset = [], [], 0
-    for mesh in meshes:
-        vertices.append(np.asarray(mesh.vertices, dtype=np.float64))
-        faces.append(np.asarray(mesh.faces, dtype=np.int64) + offset)
-        offset += len(mesh.vertices)
-    return trimesh.Trimesh(np.vstack(vertices), np.vstack(faces), process=False)
-
-
-def _axis_frame(axis: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Two unit vectors completing ``axis`` to a right-handed frame."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = helper - (helper @ axis) * axis
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(axis, e1)
-
-
-def _dot(a: Sequence[float], b: Sequence[float]) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _turn(
-    axis: Sequence[float], c: float, s: float, x: Sequence[float]
-) -> tuple[float, float, float]:
-    """Rodrigues in floats: x turned about the unit ``axis`` by the angle of cosine
-    ``c`` and sine ``s``."""
-    k = _dot(axis, x) * (1.0 - c)
-    return (
-        x[0] * c + (axis[1] * x[2] - axis[2] * x[1]) * s + axis[0] * k,
-        x[1] * c + (axis[2] * x[0] - axis[0] * x[2]) * s + axis[1] * k,
-        x[2] * c + (axis[0] * x[1] - axis[1] * x[0]) * s + axis[2] * k,
-    )
-
-
-def _section_angles(vertices: FloatArray, axis: FloatArray) -> tuple[FloatArray, IntArray]:
-    """Distinct angles of the vertices about ``axis`` (sorted) and each vertex's index
-    among them."""
-    e1, e2 = _axis_frame(axis)
-    angle = np.arctan2(vertices @ e2, vertices @ e1)
-    order = np.sort(angle)
-    groups = [float(order[0])]
-    for value in order[1:]:
-        if value - groups[-1] > _ANGLE_TOL:
-            groups.append(float(value))
-    if len(groups) > 1 and groups[0] + 2.0 * math.pi - groups[-1] <= _ANGLE_TOL:
-        groups.pop()
-    sections = np.array(groups)
-    gap = np.abs(np.angle(np.exp(1j * (angle[:, None] - sections[None, :]))))
-    return sections, np.argmin(gap, axis=1).astype(np.int64)
-
-
-def _sweep_cells(vertices: FloatArray, axis: FloatArray) -> list[FloatArray] | None:
-    """Vertex sets of the cells between consecutive sections of a shape swept about
-    ``axis`` (a plate bent along an arc, a tube), or None if it is not swept."""
-    sections, label = _section_angles(vertices, axis)
-    count = sections.size
-    if count < 3:
-        return None
-    steps = np.diff(np.concatenate([sections, [sections[0] + 2.0 * math.pi]]))
-    closed = bool(steps.max() < 3.0 * np.median(steps))
-    start = 0 if closed else (int(np.argmax(steps)) + 1) % count
-    cells = []
-    for k in range(count if closed else count - 1):
-        a, b = (start + k) % count, (start + k + 1) % count
-        cells.append(vertices[(label == a) | (label == b)])
-    return cells
-
-
-def _solid(points: FloatArray) -> bool:
-    """At least 4 points spanning 3 dimensions (qhull needs that)."""
-    if points.shape[0] < 4:
-        return False
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    return bool(spread[-1] > 1e-9 * max(float(spread[0]), 1e-300))
-
-
-def _hull_volume(points: FloatArray) -> float:
-    return float(_convex_shape(points).computeVolume())
-
-
-def _candidate_axes(design: SPMDesign) -> list[FloatArray]:
-    """Axes about which the link parts are swept: joint axes and arc normals."""
-    u, w0, v0 = design.u, design.w0, design.v0
-    axes: list[FloatArray] = [np.array([0.0, 0.0, 1.0])]
-    mean = u.mean(axis=0)
-    if np.linalg.norm(mean) > 1e-6:
-        axes.append(mean / np.linalg.norm(mean))
-    for leg in range(3):
-        axes += [u[leg], w0[leg], v0[leg]]
-        for a, b in ((u[leg], w0[leg]), (w0[leg], v0[leg])):
-            normal = np.cross(a, b)
-            if np.linalg.norm(normal) > 1e-9:
-                axes.append(normal / np.linalg.norm(normal))
-    return axes
-
-
-def _cut(mesh: trimesh.Trimesh, axes: Sequence[FloatArray]) -> list[FloatArray]:
-    """Exact convex pieces of one closed part mesh (see :func:`convex_pieces`)."""
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    volume = float(mesh.volume)
-    if mesh.is_convex:
-        return [vertices]
-    for axis in axes:
-        cells = _sweep_cells(vertices, axis)
-        if cells is None or not all(_solid(cell) for cell in cells):
-            continue
-        total = sum(_hull_volume(cell) for cell in cells)
-        if abs(total - volume) <= _VOLUME_RTOL * abs(volume) + 1e-15:
-            return cells
-    raise SPMError(  # pragma: no cover - a geometry module change the cut cannot follow
-        f"a part with {len(vertices)} vertices is neither convex nor swept about a joint "
-        "axis; the collision model cannot cut it into exact convex pieces"
-    )
-
-
-@functools.lru_cache(maxsize=8)
-def _pieces(design: SPMDesign) -> dict[str, tuple[ConvexPiece, ...]]:
-    axes = _candidate_axes(design)
-    result: dict[str, tuple[ConvexPiece, ...]] = {}
-    for link, parts in link_parts(design).items():
-        pieces: list[ConvexPiece] = []
-        for part in parts:
-            for index, cell in enumerate(_cut(part.mesh, axes)):
-                cell.setflags(write=False)
-                pieces.append(ConvexPiece(link, part.name, index, cell))
-        result[link] = tuple(pieces)
-    return result
-
-
-def convex_pieces(design: SPMDesign | str | None = None) -> dict[str, tuple[ConvexPiece, ...]]:
-    """Exact convex pieces of every link (keys :data:`LINK_NAMES`), link frame [m].
-
-    Convex parts (cylinders, boxes, hulls) are one piece each. Curved plates, tubes
-    and gears are cut along their sweep (about a joint axis or the normal of their
-    arc) into the cells between consecutive cross-sections; each cell is the convex
-    hull of its two sections. The cut is accepted only if the cells' volumes add up
-    to the part's volume (relative 1e-9), so the pieces are the drawn shape.
-
-    Args:
-        design: The SPM (default: the prototype).
-    """
-    return _pieces(check_design(design))
 
 
 # ---------------------------------------------------------------- the static model
@@ -943,7 +762,7 @@ class CollisionChecker:
             InputError: ``robot`` is not an SPMRobot; bad ``probes``,
                 ``probe_samples`` or ``seed``.
         """
-        from .model.robot import SPMRobot
+        from ..model.robot import SPMRobot
 
         if not isinstance(robot, SPMRobot):
             raise InputError(
@@ -1934,7 +1753,7 @@ def build_robot(design: SPMDesign | str | None = None) -> SPMRobot:
         >>> robot.collisions([0.0, 0.0, 0.0])
         []
     """
-    from .model.robot import build_robot as build_model
+    from ..model.robot import build_robot as build_model
 
     return build_model(design, checker_factory=CollisionChecker)
 
@@ -1978,7 +1797,7 @@ def check_input(
     Raises:
         InputError: bad ``theta``, ``robot`` or ``margin``.
     """
-    from .model.robot import SPMRobot
+    from ..model.robot import SPMRobot
 
     angles = as_theta(theta)
     if angles.shape != (3,):
