@@ -101,16 +101,13 @@ def require_angles(array: FloatArray, name: str, value: object) -> None:
     The one rule for angles [rad] given by the user; the message names the allowed
     range (see :data:`ANGLE_LIMIT` for why it lies there).
     """
-    ok = np.isfinite(array) & (np.abs(array) <= ANGLE_LIMIT)
-    if not np.all(ok):
-        bad = tuple(int(i) for i in np.argwhere(~ok)[0])
-        raise InputError(
-            f"{name} must be finite with |{name}| <= {ANGLE_LIMIT:g} rad (326 turns, "
-            f"the range where float64 keeps angles within the 1e-12 closure tolerance), "
-            f"got {array[bad]}{' at index ' + str(bad) if bad else ''}",
-            argument=name,
-            value=value,
-        )
+    require_bounded(
+        array,
+        name,
+        value,
+        ANGLE_LIMIT,
+        "rad (326 turns, the range where float64 keeps angles within the 1e-12 closure tolerance)",
+    )
 
 
 def require_bounded(
@@ -145,20 +142,20 @@ def as_theta(theta: npt.ArrayLike, name: str = "theta") -> FloatArray:
     finite and |theta| <= :data:`ANGLE_LIMIT`. The value keeps its turns; code
     reduces angles only where it needs sin and cos.
     """
-    if isinstance(theta, (str, bytes)):
-        raise InputError(
+
+    def not_numbers() -> InputError:  # the message only when it is needed
+        return InputError(
             f"{name} must be numbers [rad] of shape (3,) or (..., 3), got {theta!r}",
             argument=name,
             value=theta,
         )
+
+    if isinstance(theta, (str, bytes)):  # numpy would read "1e3" as a number
+        raise not_numbers()
     try:
         array = np.asarray(theta, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:
-        raise InputError(
-            f"{name} must be numbers [rad] of shape (3,) or (..., 3), got {theta!r}",
-            argument=name,
-            value=theta,
-        ) from exc
+        raise not_numbers() from exc
     if array.ndim == 0 or array.shape[-1] != 3:
         raise InputError(
             f"{name} must have shape (3,) or (..., 3) [rad], got shape {array.shape}",
