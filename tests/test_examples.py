@@ -8,6 +8,7 @@ data, by finite differences, from the files the scripts write), not only for exi
 from __future__ import annotations
 
 import functools
+import importlib.metadata
 import importlib.util
 import json
 import math
@@ -107,6 +108,7 @@ def test_examples_exist() -> None:
     names = {p.stem for p in EXAMPLES}
     assert {"kinematics", "closed_loop", "workspace", "visualize", "dynamics"} <= names
     assert {"hardware_emulated", "calibration"} <= names
+    assert "closed_loops_robots" in names
 
 
 @pytest.mark.parametrize("script", EXAMPLES, ids=[p.name for p in EXAMPLES])
@@ -410,3 +412,146 @@ def _base64(text: str) -> bytes:
     import base64
 
     return base64.b64decode(text)
+
+
+def _robot_files() -> Path:
+    """The robot files of example-robot-data."""
+    folder = importlib.metadata.distribution("example-robot-data").locate_file(
+        "cmeel.prefix/share/example-robot-data/robots"
+    )
+    return Path(str(folder))
+
+
+def _two_ur5() -> pin.Model:
+    """Two UR5s, names prefixed a_ and b_, arm b turned to face arm a 1.2 m away."""
+    urdf = str(_robot_files() / "ur_description" / "urdf" / "ur5_robot.urdf")
+    arms = []
+    for prefix in ("a_", "b_"):
+        arm = pin.buildModelFromUrdf(urdf)
+        for joint in range(1, arm.njoints):
+            arm.names[joint] = prefix + arm.names[joint]
+        for frame in arm.frames:
+            frame.name = prefix + frame.name
+        arms.append(arm)
+    base_b = pin.SE3(pin.utils.rotate("z", np.pi), np.array([1.2, 0.0, 0.0]))
+    return pin.appendModel(arms[0], arms[1], 0, base_b)
+
+
+def test_closed_loops_robots() -> None:
+    out = parse(run("closed_loops_robots"))
+    tol = TOL["printed_digits"]
+
+    # Two UR5s: 12 joints, one 6D weld of rank 6, six degrees of freedom.
+    arms = _two_ur5()
+    data = arms.createData()
+    tool_a, tool_b = arms.getFrameId("a_tool0"), arms.getFrameId("b_tool0")
+    assert int(out["ur5_mobility"]) == arms.nv - 6 == 6
+    assert "rank 6" in out["ur5_loop"] and "mobility=6" in out["ur5_loop"]
+
+    def relative(q: np.ndarray) -> pin.SE3:
+        """Arm b's tool seen from arm a's, by plain forward kinematics."""
+        pin.framesForwardKinematics(arms, data, q)
+        return data.oMf[tool_a].actInv(data.oMf[tool_b])
+
+    q_start = numbers(out["ur5_q_start"])
+    bar = relative(q_start)
+    for name in ("ur5_q", "ur5_path_end_q", "ur5_target_q"):  # the bar is still held
+        held = relative(numbers(out[name]))
+        assert np.abs(pin.log6(bar.actInv(held)).vector).max() < tol, name
+    q = numbers(out["ur5_q"])
+    np.testing.assert_allclose(q[:6], q_start[:6] + 0.1, atol=tol)
+    np.testing.assert_allclose(numbers(out["ur5_actuated"]), q_start[:6] + 0.1, atol=tol)
+    assert not np.allclose(q[6:], q_start[6:], atol=1e-3)  # arm b did move
+    np.testing.assert_allclose(
+        numbers(out["ur5_path_end_q"])[:6],
+        q_start[:6] + np.array([0.4, 0.2, -0.3, 0.3, 0.2, 0.5]),
+        atol=tol,
+    )
+    assert int(out["ur5_path_samples"]) == 40
+    assert 0 < int(out["ur5_newton_steps"]) < 50
+    for name in ("ur5_residual", "ur5_path_max_residual", "ur5_target_residual"):
+        assert float(out[name]) <= 1e-12, name
+
+    # The velocities keep both tools on one rigid bar: equal spatial velocities (world).
+    rate, v = numbers(out["ur5_rate"]), numbers(out["ur5_v"])
+    np.testing.assert_allclose(v[:6], rate, atol=tol)
+    pin.forwardKinematics(arms, data, q, v)
+    world = pin.ReferenceFrame.WORLD
+    np.testing.assert_allclose(
+        pin.getFrameVelocity(arms, data, tool_a, world).vector,
+        pin.getFrameVelocity(arms, data, tool_b, world).vector,
+        atol=TOL["finite_difference"],
+    )
+    J_b = numbers(out["ur5_J_b_tool"]).reshape(6, 6)
+    np.testing.assert_allclose(
+        J_b @ rate, pin.getFrameVelocity(arms, data, tool_b).vector, atol=TOL["finite_difference"]
+    )
+
+    # The bar carried: arm a's tool at the printed target, 5 cm up and turned 10 deg.
+    target = numbers(out["ur5_target"]).reshape(4, 4)
+    pin.framesForwardKinematics(arms, data, numbers(out["ur5_target_q"]))
+    np.testing.assert_allclose(data.oMf[tool_a].homogeneous, target, atol=tol)
+    pin.framesForwardKinematics(arms, data, q_start)
+    start = data.oMf[tool_a]
+    np.testing.assert_allclose(target[:3, 3] - start.translation, [0, 0, 0.05], atol=tol)
+    turn = target[:3, :3] @ start.rotation.T
+    np.testing.assert_allclose(turn, pin.utils.rotate("z", np.radians(10.0)), atol=tol)
+
+    # Solo-12 on four point contacts: 18 velocities, 12 rows, six degrees of freedom.
+    robots = _robot_files()
+    solo = pin.buildModelFromUrdf(
+        str(robots / "solo_description" / "robots" / "solo12.urdf"), pin.JointModelFreeFlyer()
+    )
+    solo_data = solo.createData()
+    feet = [solo.getFrameId(f"{leg}_FOOT") for leg in ("FL", "FR", "HL", "HR")]
+    body = solo.getFrameId("base_link")
+    assert int(out["solo_mobility"]) == solo.nv - 12 == 6
+    assert "(12 rows, rank 12)" in out["solo_loop"] and "mobility=6" in out["solo_loop"]
+    assert out["solo_twelve_inputs"].startswith("refused")
+
+    pin.framesForwardKinematics(solo, solo_data, numbers(out["solo_q_start"]))
+    ground = np.array([solo_data.oMf[foot].translation for foot in feet])
+    np.testing.assert_allclose(numbers(out["solo_ground"]).reshape(4, 3), ground, atol=tol)
+
+    def feet_error(q: np.ndarray) -> float:
+        pin.framesForwardKinematics(solo, solo_data, q)
+        return float(
+            max(
+                np.linalg.norm(solo_data.oMf[f].translation - p)
+                for f, p in zip(feet, ground, strict=True)
+            )
+        )
+
+    # The body at the target pose, the feet where they stood.
+    q = numbers(out["solo_q"])
+    assert np.linalg.norm(q[3:7]) == pytest.approx(1.0, abs=tol)
+    assert feet_error(q) < tol
+    target = numbers(out["solo_target"]).reshape(4, 4)
+    np.testing.assert_allclose(solo_data.oMf[body].homogeneous, target, atol=tol)
+    expected = pin.SE3(
+        pin.rpy.rpyToMatrix(np.radians([5.0, -4.0, 8.0])), np.array([0.02, -0.01, 0.205])
+    )
+    np.testing.assert_allclose(target, expected.homogeneous, atol=tol)
+    assert float(out["solo_residual"]) <= 1e-12
+    assert float(out["solo_other_coordinates_difference"]) <= TOL["newton_residual"]
+    assert 0 < int(out["solo_iterations"]) < 50
+
+    # The joint rates move the body with the twist and hold every foot still.
+    v = numbers(out["solo_v"])
+    pin.forwardKinematics(solo, solo_data, q, v)
+    np.testing.assert_allclose(
+        pin.getFrameVelocity(solo, solo_data, body).vector,
+        numbers(out["solo_twist"]),
+        atol=TOL["finite_difference"],
+    )
+    for foot in feet:
+        still = pin.getFrameVelocity(solo, solo_data, foot, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        np.testing.assert_allclose(still.linear, 0.0, atol=TOL["finite_difference"])
+
+    # The squat ends with the body level at 17 cm, the feet still on the ground.
+    squat = numbers(out["solo_squat_q"])
+    assert feet_error(squat) < tol
+    level = pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.17])).homogeneous
+    np.testing.assert_allclose(solo_data.oMf[body].homogeneous, level, atol=tol)
+    steps = numbers(out["solo_squat_iterations"])
+    assert len(steps) == 14 and steps.max() < 50
