@@ -63,7 +63,6 @@ ALLOWED: dict[str, set[object]] = {
     "long": {
         "spm_pin.calibration",
         "spm_pin.cli",
-        "spm_pin.closure",
         "spm_pin.demo",
         "spm_pin.dynamics",
         "spm_pin.hardware.driver",
