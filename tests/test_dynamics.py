@@ -390,7 +390,7 @@ def test_generic_solver_takes_over_from_the_lean_newton(
     reference = {
         k: D.Simulator(upright, integrator=k, state=start).run(0.05) for k in D.INTEGRATORS
     }
-    monkeypatch.setattr(D, "NEWTON_MAX_ITERATIONS", 0)
+    monkeypatch.setattr(D._kernel, "NEWTON_MAX_ITERATIONS", 0)
     for integrator, expected in reference.items():
         result = D.Simulator(upright, integrator=integrator, state=start).run(0.05)
         np.testing.assert_allclose(result.theta, expected.theta, atol=1e-11)
@@ -401,7 +401,8 @@ def test_singularity_is_reported(
     upright: D.ClosedLoopDynamics, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Every configuration counts as singular when the threshold is above 1."""
-    monkeypatch.setattr(D, "SINGULAR_RCOND", 2.0)
+    for module in (D.closed_loop, D._kernel, D.simulator):  # every module that reads it
+        monkeypatch.setattr(module, "SINGULAR_RCOND", 2.0)
     with pytest.raises(spm.SingularityError, match="type II"):
         D.Simulator(upright)
     match = r"parallel \(type II\) singularity: .*at theta = \[0\.0, 0\.0, 0\.0\] deg"
