@@ -64,8 +64,6 @@ ALLOWED: dict[str, set[object]] = {
         "spm_pin.calibration",
         "spm_pin.cli",
         "spm_pin.demo",
-        "spm_pin.hardware.driver",
-        "spm_pin.hardware.emulator",
     },
 }
 

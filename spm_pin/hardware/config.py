@@ -50,7 +50,7 @@ import tomli_w
 from ..design import _parse_toml, _read_text
 from ..errors import FileFormatError, InputError
 from .control_table import HardwareErrorFlag
-from .driver import ServoSettings
+from .servo_data import ServoSettings
 
 __all__ = [
     "HardwareConfig",

@@ -42,10 +42,6 @@ Known defects of dynamixel-sdk 4.1 and what the driver does about them:
 from __future__ import annotations
 
 import contextlib
-import dataclasses
-import functools
-import inspect
-import math
 import termios
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -53,18 +49,17 @@ from types import TracebackType
 from typing import Any, TypeVar
 
 from ..errors import CommunicationError, HardwareError, InputError, ServoError
+from ._sdk import SDK_BAUD_RATES, load_sdk, port_class
 from .control_table import (
-    ACCELERATION_UNIT,
     ALERT_BIT,
     BAUD_RATES,
-    CURRENT_UNIT,
     INSTRUCTION_ERRORS,
     MODEL_NUMBER,
-    VELOCITY_UNIT,
     XM540_W150,
     HardwareErrorFlag,
 )
 from .protocol import BROADCAST_ID, Instruction, ProtocolError, has_unstuffed_header, unstuff
+from .servo_data import FAST_SYNC_READ_FIRMWARE, ServoInfo, ServoReadings, ServoSettings
 
 __all__ = [
     "FAST_SYNC_READ_FIRMWARE",
@@ -78,8 +73,6 @@ __all__ = [
 
 T = TypeVar("T")
 
-#: First firmware version with FAST_SYNC_READ.
-FAST_SYNC_READ_FIRMWARE = 45
 #: The block that :meth:`ServoBus.sync_read` reads: Goal Position (116) to Present
 #: Position (135), 20 bytes: goal, moving, current, velocity and position at once.
 STATE_BLOCK = (116, 20)
@@ -89,196 +82,9 @@ _RETRYABLE = {-1000, -1001, -1002, -3001, -3002}
 _CRC_ERROR = 3
 #: Time to wait for a rebooted servo to answer again [s].
 REBOOT_TIMEOUT = 2.0
-#: Baud rates that both the SDK and the servo accept [bit/s].
-SDK_BAUD_RATES = (9_600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
 #: The XM540-W150's factory line rate (Baud Rate item 1) [bit/s]: the default of
 #: :class:`ServoBus`, as of the emulator and of :class:`HardwareConfig`.
 FACTORY_BAUDRATE = BAUD_RATES[XM540_W150["Baud Rate"].default or 0]
-
-
-def load_sdk() -> Any:
-    """Import ``dynamixel_sdk`` or raise HardwareError with the install command."""
-    try:
-        import dynamixel_sdk
-    except ImportError as exc:
-        raise HardwareError(
-            "the servo driver needs dynamixel-sdk: pip install 'spm-pin[hardware]'",
-            operation="import dynamixel_sdk",
-        ) from exc
-    # The driver receives status packets undestuffed (rxPacket's fast_option, 4.x).
-    parameters = inspect.signature(dynamixel_sdk.Protocol2PacketHandler.rxPacket).parameters
-    if "fast_option" not in parameters:
-        raise HardwareError(
-            "the servo driver needs dynamixel-sdk 4.1 or newer: "
-            "pip install --upgrade 'dynamixel-sdk>=4.1'",
-            operation="import dynamixel_sdk",
-        )
-    return dynamixel_sdk
-
-
-@functools.cache
-def _port_class() -> type:
-    """dynamixel_sdk.PortHandler with the packet timeout's latency as an attribute."""
-    sdk = load_sdk()
-
-    class _Port(sdk.PortHandler):  # type: ignore[misc,name-defined]
-        latency_ms = 16.0
-        #: Clock of the packet timeout [s] (ServoBus sets its own ``clock``).
-        clock: Callable[[], float] = staticmethod(time.monotonic)
-        #: Clock when the last read of the port began [ms] (see isPacketTimeout).
-        last_read_time = -math.inf
-
-        def getCurrentTime(self) -> float:  # the SDK's name; it uses the wall clock
-            return self.clock() * 1000.0
-
-        def setPacketTimeout(self, packet_length: int) -> None:  # the SDK's name
-            self.packet_start_time = self.getCurrentTime()
-            self.packet_timeout = (
-                self.tx_time_per_byte * packet_length + 2.0 * self.latency_ms + 2.0
-            )
-
-        def readPort(self, length: int) -> Any:  # the SDK's name
-            self.last_read_time = self.getCurrentTime()
-            return super().readPort(length)
-
-        def isPacketTimeout(self) -> bool:  # the SDK's name
-            # Expired only when a read that began after the deadline still came back
-            # short: the SDK checks the clock after its read, so a controller preempted
-            # between the two would otherwise give up on a reply already waiting.
-            if self.last_read_time - self.packet_start_time > self.packet_timeout:
-                self.packet_timeout = 0.0
-                return True
-            return False
-
-    return _Port
-
-
-@dataclasses.dataclass(frozen=True)
-class ServoInfo:
-    """What PING and the EEPROM tell about a servo."""
-
-    servo_id: int
-    model_number: int
-    firmware: int
-
-    @property
-    def fast_sync_read(self) -> bool:
-        """The firmware knows FAST_SYNC_READ."""
-        return self.firmware >= FAST_SYNC_READ_FIRMWARE
-
-
-@dataclasses.dataclass(frozen=True)
-class ServoReadings:
-    """One sync read of every servo on the bus (raw units, signed), in id order.
-
-    Attributes:
-        ids: Servo ids.
-        goal: Goal Position the servo holds [pulses].
-        position: Present Position [pulses].
-        velocity: Present Velocity [0.229 rev/min].
-        current: Present Current [2.69 mA].
-        moving: Moving flag.
-        alert: The status packet's alert bit (a hardware error is latched).
-        time: :func:`time.perf_counter` when the read completed [s].
-        fast: Read with FAST_SYNC_READ.
-    """
-
-    ids: tuple[int, ...]
-    goal: tuple[int, ...]
-    position: tuple[int, ...]
-    velocity: tuple[int, ...]
-    current: tuple[int, ...]
-    moving: tuple[bool, ...]
-    alert: tuple[bool, ...]
-    time: float
-    fast: bool
-
-    def velocity_rad_s(self) -> list[float]:
-        """Present Velocity of each servo shaft [rad/s]."""
-        return [v * VELOCITY_UNIT for v in self.velocity]
-
-    def current_a(self) -> list[float]:
-        """Present Current of each servo [A]."""
-        return [c * CURRENT_UNIT for c in self.current]
-
-
-@dataclasses.dataclass(frozen=True)
-class ServoSettings:
-    """How :meth:`ServoBus.configure` sets up every servo.
-
-    Operating Mode is always 4 (extended position: multi-turn, for endless yaw).
-
-    Attributes:
-        profile_velocity: Profile Velocity [rad/s of the servo shaft] (> 0; 0 would
-            mean "unlimited" to the servo).
-        profile_acceleration: Profile Acceleration [rad/s^2] (> 0).
-        velocity_limit: Velocity Limit [rad/s] (EEPROM; caps Profile Velocity).
-        current_limit: Current Limit [A] (EEPROM, at most 2047 x 2.69 mA = 5.5 A).
-        return_delay: Return Delay Time [s] (EEPROM; 0 for the fastest bus).
-        shutdown: Hardware errors that drop torque (Shutdown item, EEPROM).
-    """
-
-    profile_velocity: float = math.radians(120.0)
-    profile_acceleration: float = math.radians(1200.0)
-    velocity_limit: float = math.radians(300.0)
-    current_limit: float = 5.5
-    return_delay: float = 0.0
-    shutdown: HardwareErrorFlag = (
-        HardwareErrorFlag.OVERHEATING
-        | HardwareErrorFlag.ELECTRICAL_SHOCK
-        | HardwareErrorFlag.OVERLOAD
-    )
-
-    def __post_init__(self) -> None:
-        for name in ("profile_velocity", "profile_acceleration", "velocity_limit"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise InputError(
-                    f"{name} must be a positive number, got {value!r}", argument=name, value=value
-                )
-        if self.profile_velocity > self.velocity_limit:
-            raise InputError(
-                f"profile_velocity {self.profile_velocity} rad/s exceeds velocity_limit "
-                f"{self.velocity_limit} rad/s",
-                argument="profile_velocity",
-                value=self.profile_velocity,
-            )
-        self.raw()  # range checks of every item
-
-    def raw(self) -> dict[str, int]:
-        """Control-table values: item name -> raw value (each range-checked)."""
-
-        def units(value: float, unit: float, name: str, *, at_least_one: bool) -> int:
-            raw = round(value / unit)
-            if at_least_one:
-                raw = max(raw, 1)
-            return XM540_W150[name].check(raw)
-
-        return {
-            # First: a servo set to answer reads only would leave every write unanswered.
-            "Status Return Level": 2,
-            "Operating Mode": 4,
-            "Drive Mode": 0,
-            "Return Delay Time": units(
-                self.return_delay, 2e-6, "Return Delay Time", at_least_one=False
-            ),
-            "Velocity Limit": units(
-                self.velocity_limit, VELOCITY_UNIT, "Velocity Limit", at_least_one=True
-            ),
-            "Current Limit": units(
-                self.current_limit, CURRENT_UNIT, "Current Limit", at_least_one=True
-            ),
-            "Shutdown": XM540_W150["Shutdown"].check(int(self.shutdown)),
-            "Profile Acceleration": units(
-                self.profile_acceleration,
-                ACCELERATION_UNIT,
-                "Profile Acceleration",
-                at_least_one=True,
-            ),
-            "Profile Velocity": units(
-                self.profile_velocity, VELOCITY_UNIT, "Profile Velocity", at_least_one=True
-            ),
-        }
 
 
 class _Failed(Exception):
@@ -403,7 +209,7 @@ class ServoBus:
         if self._port is not None:
             return self
         sdk = load_sdk()
-        port = _port_class()(self.port_name)
+        port = port_class()(self.port_name)
         port.latency_ms = self.latency_timer_ms
         port.clock = self.clock
         port.baudrate = self.baudrate
