@@ -494,11 +494,12 @@ def test_failed_cross_check_exits_1(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A tolerance no solver can meet: the demo still reports, and exits with status 1."""
-    import spm_pin.demo
+    import spm_pin.study.sections
 
     for module in ("mujoco", "matplotlib", "meshcat"):  # keep this run short
         monkeypatch.setitem(sys.modules, module, None)
-    monkeypatch.setattr(spm_pin.demo, "PROJECTION_TOLERANCE", 0.0)
+    # the sections read the tolerance (spm_pin.study.context defines it)
+    monkeypatch.setattr(spm_pin.study.sections, "PROJECTION_TOLERANCE", 0.0)
     status = main(["demo", "--quick", "--quiet", "--out", str(tmp_path)])
     text, err = capsys.readouterr()
     assert status == 1

@@ -32,6 +32,7 @@ __all__ = [
     "emit",
     "mode",
     "number",
+    "one_line",
 ]
 
 
@@ -175,3 +176,8 @@ def add_margin_option(parser: argparse.ArgumentParser, text: str) -> None:
 def emit(record: Record, as_json: bool) -> None:
     text = dumps(record) if as_json else "\n".join(render(plain(record)))
     print(text)
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line: runs of white space (newlines too) become one space."""
+    return " ".join(str(text).split())

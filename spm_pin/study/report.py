@@ -1,0 +1,180 @@
+"""The study's report: ``index.html`` (the sections with their tables, figures and
+meshcat scenes), the list of report files and the text output."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+
+from .._records import Record
+from .._version import __version__
+from ._extras import INSTALL_DEMO, Skipped
+from .context import FILES as _FILES
+from .context import FK_METHODS as _FK_METHODS
+from .context import STUDY_AGREEMENT, DemoContext, DemoSection
+from .context import degrees_text as _degrees_text
+from .context import methods as _methods
+from .context import sci as _sci
+
+__all__ = ["report_files", "report_html", "text_output", "unique_skipped"]
+
+
+# -------------------------------------------------------------------------- report
+_STYLE = """
+body { font-family: system-ui, sans-serif; max-width: 72rem; margin: 2rem auto;
+       padding: 0 1rem; color: #222; line-height: 1.45; }
+h1 { font-size: 1.6rem; } h2 { margin-top: 2.5rem; border-bottom: 1px solid #ccc; }
+pre { background: #f5f6f8; padding: 0.8rem; overflow-x: auto; font-size: 0.82rem; }
+table { border-collapse: collapse; font-variant-numeric: tabular-nums; margin: 1rem 0; }
+th, td { border: 1px solid #ccd; padding: 0.2rem 0.5rem; text-align: right; }
+th { background: #eef0f4; }
+figure { margin: 1.2rem 0; }
+figure img { max-width: 100%; border: 1px solid #ddd; }
+iframe { width: 100%; height: 30rem; border: 1px solid #ccd; }
+figcaption { font-size: 0.9rem; color: #555; }
+.skipped { background: #fff4e0; border-left: 4px solid #f0a020; padding: 0.5rem 0.8rem; }
+"""
+
+
+def _fk_table(data: Record) -> str:
+    """The platform axes by every method side by side: one row per component."""
+    methods = _methods(data)
+    head = "".join(f"<th>{html.escape(_FK_METHODS[key])}</th>" for key in methods)
+    rows = []
+    for i in range(3):
+        for c, letter in enumerate("xyz"):
+            cells = "".join(f"<td>{np.asarray(m['v'])[i, c]:.6f}</td>" for m in methods.values())
+            rows.append(f"<tr><th>v<sub>{i + 1}</sub> {letter}</th>{cells}</tr>")
+    deviations = "".join(
+        f"<td>{method['deviation_from_analytic']:.1e}</td>" for method in methods.values()
+    )
+    rows.append(f"<tr><th>max |v - v<sub>analytic</sub>|</th>{deviations}</tr>")
+    return (
+        f"<table><tr><th></th>{head}</tr>"
+        + "".join(rows)
+        + "</table>"
+        + f"<p>The study reported an agreement of about {_sci(STUDY_AGREEMENT)} between its "
+        "model and CoppeliaSim.</p>"
+    )
+
+
+def _section_html(section: DemoSection) -> str:
+    parts = [f'<section id="{section.key}">', f"<h2>{html.escape(section.title)}</h2>"]
+    if section.key == "forward_kinematics":
+        parts.append(_fk_table(section.data))
+    parts.append("<pre>" + html.escape("\n".join(section.text_lines())) + "</pre>")
+    for item in section.figures:
+        parts.append(
+            f'<figure><img src="{html.escape(item.path)}" alt="{html.escape(item.caption)}">'
+            f"<figcaption>{html.escape(item.caption)}</figcaption></figure>"
+        )
+    for item in section.scenes:
+        path = html.escape(item.path)
+        parts.append(
+            f'<figure><iframe src="{path}" title="{html.escape(item.caption)}" '
+            'loading="lazy"></iframe>'
+            f"<figcaption>{html.escape(item.caption)} "
+            f'<a href="{path}">Open the scene on its own page.</a></figcaption></figure>'
+        )
+    for skip in section.skipped:
+        parts.append(_skipped_html(skip))
+    parts.append("</section>")
+    return "\n".join(parts)
+
+
+def _skipped_html(skip: Skipped) -> str:
+    return (
+        f'<p class="skipped">Skipped: {html.escape(skip.part)} ({html.escape(skip.missing)} '
+        f"is not installed; <code>{html.escape(skip.install)}</code>).</p>"
+    )
+
+
+def report_html(
+    ctx: DemoContext, sections: list[DemoSection], skipped: list[Skipped], seconds: float
+) -> str:
+    where = _degrees_text(ctx.theta_deg)
+    contents = "".join(
+        f'<li><a href="#{section.key}">{html.escape(section.title)}</a></li>'
+        for section in sections
+    )
+    missing = ""
+    if skipped:
+        missing = '<p class="skipped">Parts skipped for missing optional dependencies: ' + (
+            "; ".join(html.escape(f"{s.part} ({s.missing})") for s in skipped)
+            + f". Install them with <code>{html.escape(INSTALL_DEMO)}</code>.</p>"
+        )
+    body = "\n".join(_section_html(section) for section in sections)
+    return f"""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>spm-pin demo: the {html.escape(ctx.design.name)}</title>
+<style>{_STYLE}</style>
+</head>
+<body>
+<h1>spm-pin {html.escape(__version__)}: the published study of the {html.escape(ctx.design.name)},
+reproduced</h1>
+<p>The study "Modeling and Simulation of Spherical Parallel Manipulators in CoppeliaSim
+(V-REP)" compared the platform axes of a 3D-printed coaxial SPM computed from its kinematic
+model with those of a simulation at theta = {html.escape(where)} deg, showed the motion from
+home to that input at {ctx.samples} samples and found a link collision at
+theta = {html.escape(_degrees_text(ctx.colliding_theta_deg))} deg. This report does the same
+on the same prototype with spm-pin, and maps the safe workspace and the actuator torques
+that the study left as future work. The scenes are interactive: drag to orbit, scroll to
+zoom. Every number is in <a href="{_FILES["record"]}">{_FILES["record"]}</a>.</p>
+{missing}
+<nav><ol>{contents}</ol></nav>
+{body}
+<footer><p>Made by <code>spm demo</code> (spm-pin {html.escape(__version__)}) in
+{seconds:.1f} s.</p></footer>
+</body>
+</html>
+"""
+
+
+def unique_skipped(skipped: list[Skipped]) -> list[Skipped]:
+    seen: dict[tuple[str, str], Skipped] = {}
+    for skip in skipped:
+        seen.setdefault((skip.part, skip.missing), skip)
+    return list(seen.values())
+
+
+def report_files(out: Path, sections: list[DemoSection]) -> dict[str, Path]:
+    """Every file of the report, by its path relative to ``out``."""
+    names = [_FILES["index"], _FILES["record"]]
+    for section in sections:
+        names += [item.path for item in (*section.figures, *section.scenes)]
+        names += list(section.files)
+    return {name: out / name for name in dict.fromkeys(names)}
+
+
+def text_output(
+    ctx: DemoContext,
+    sections: list[DemoSection],
+    skipped: list[Skipped],
+    failed: list[str],
+    files: dict[str, Path],
+    seconds: float,
+) -> list[str]:
+    where = _degrees_text(ctx.theta_deg)
+    lines = [
+        f"spm-pin {__version__}: the published study of the {ctx.design.name}, reproduced "
+        f"(theta = {where} deg)"
+    ]
+    for section in sections:
+        lines += ["", f"== {section.title} ==", *section.text_lines()]
+    lines.append("")
+    if failed:
+        lines.append("Cross-checks OUTSIDE their tolerance: " + ", ".join(failed))
+    if skipped:
+        lines.append("Skipped (optional dependencies missing):")
+        lines += [f"  {skip.part}: needs {skip.missing}" for skip in skipped]
+        lines.append(f"  install them with: {INSTALL_DEMO}")
+    if _FILES["index"] in files:
+        index = files[_FILES["index"]]
+        lines.append(f"report: {index} (open it in a browser; it works offline)")
+    lines.append(f"done in {seconds:.1f} s")
+    return lines
