@@ -1,4 +1,4 @@
-"""``python -m benchmarks``: run every benchmark, write one JSON file and one table.
+"""``python -m benchmarks``: run every benchmark, write one pyperf suite and one table.
 
 See :mod:`benchmarks._gather` for what is run and written, and
 ``python -m benchmarks --help`` for the options.

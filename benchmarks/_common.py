@@ -141,14 +141,17 @@ class Timing:
         """Sum of the samples [s]."""
         return sum(self.samples)
 
-    def summary(self, items: int = 1) -> dict[str, float | int]:
+    def summary(self, items: int = 1) -> dict[str, Any]:
         """Statistics for JSON, when each sample processed ``items`` items.
 
-        ``per_item_s`` is median / items and ``per_second`` is items / median.
+        ``per_item_s`` is median / items and ``per_second`` is items / median;
+        ``values_s`` holds every sample (per call, not per item), from which the
+        gatherer builds the pyperf benchmark of the figure.
         """
         median = self.median
         return {
             "samples": len(self.samples),
+            "values_s": list(self.samples),
             "items": items,
             "median_s": median,
             "p95_s": self.p95,

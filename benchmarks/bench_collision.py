@@ -220,6 +220,7 @@ def entry(timing: Timing, **extra: Any) -> dict[str, Any]:
     """Per-call statistics for JSON."""
     return {
         "n": len(timing.samples),
+        "values_s": list(timing.samples),
         "median_s": timing.median,
         "p95_s": timing.p95,
         "p99_s": timing.p99,

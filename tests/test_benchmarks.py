@@ -6,6 +6,7 @@ No timing is asserted: only the structure of the output and the accuracy figures
 from __future__ import annotations
 
 import importlib.util
+import io
 import json
 import math
 import re
@@ -15,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pyperf = pytest.importorskip("pyperf")
 
 pytest.importorskip("scipy")
 
@@ -296,9 +299,9 @@ def test_quick_collision_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture
 
 @pytest.mark.hardware  # the suite includes bench_hardware (emulated bus on a pty)
 def test_gathered_suite_quick(tmp_path: Path) -> None:
-    """`python -m benchmarks --quick` runs every benchmark into one JSON file and one
-    table whose rows are the JSON's figures; docs/benchmarks.md is left alone."""
-    from benchmarks import _gather
+    """`python -m benchmarks --quick` runs every benchmark into one pyperf suite and one
+    table whose rows are the suite's figures; docs/benchmarks.md is left alone."""
+    from benchmarks import _figures, _report, _suite
 
     page = ROOT / "docs" / "benchmarks.md"
     page_before = page.read_bytes()
@@ -309,46 +312,209 @@ def test_gathered_suite_quick(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stdout + done.stderr
     assert page.read_bytes() == page_before
 
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["config"]["quick"] is True and summary["config"]["complete"] is True
-    assert {"cpu", "logical_cpus", "packages", "load_average_end"} <= set(summary["machine"])
-    assert list(summary["benchmarks"]) == list(_gather.BENCHMARKS)
+    suite = pyperf.BenchmarkSuite.load(str(tmp_path / "suite.json"))
+    info = suite.get_metadata()
+    assert info["suite"] == "spm-pin benchmarks" and info["quick"] == 1 and info["complete"] == 1
+    assert {"cpu_count", "python", "version.numpy", "load_avg_end"} <= set(info)
+    assert info["benchmarks"].split() == list(_figures.BENCHMARKS)
     optional = {"dynamics": "mujoco", "hardware": "dynamixel_sdk"}
     expected_rows = []
-    for name, entry in summary["benchmarks"].items():
+    for name in _figures.BENCHMARKS:
+        status = info[f"status.{name}"]
         if importlib.util.find_spec(optional.get(name, "numpy")) is None:
-            assert entry["status"] == "skipped", (name, entry["reason"])
-        else:
-            assert entry["status"] == "ok", (name, entry["reason"])
-            own = {k for k, v in entry["result"]["targets"].items() if isinstance(v, dict)}
-            assert own and set(entry["targets"]) == own, name
-            for target_name, t in entry["targets"].items():
-                assert t["verdict"] == ("PASS" if t["pass"] else "FAIL"), target_name
-                assert math.isfinite(t["value"]) and math.isfinite(t["threshold"]), target_name
-                assert {"peer_value", "ratio", "comparison", "unit"} <= set(t), target_name
-            shown = sorted(n for f in entry["figures"] for n in f["targets"])
-            assert shown == sorted(own), name  # every target in exactly one row
-            assert any(f["peer"] is not None for f in entry["figures"]), name
-        for f in entry["figures"]:
-            verdicts = "; ".join(entry["targets"][n]["verdict"] for n in f["targets"])
-            status = entry["status"].upper() if f["kind"] == "status" else verdicts or "—"
-            expected_rows.append((f["label"], status))
+            assert status == "skipped", (name, info.get(f"reason.{name}"))
+            expected_rows.append((f"{name}: not run", "SKIPPED"))
+            continue
+        assert status == "ok", (name, info.get(f"reason.{name}"))
+        own = json.loads((tmp_path / f"{name}.json").read_text())["targets"]
+        own = {k: v for k, v in own.items() if isinstance(v, dict)}
+        ours = [b for b in suite if b.get_metadata()["benchmark"] == name]
+        shown = []
+        for bench in ours:
+            metadata = bench.get_metadata()
+            assert bench.get_name().startswith(f"{name}/"), bench.get_name()
+            assert metadata["unit"] in {"second", "integer"}
+            assert metadata["direction"] in {"lower", "higher"}
+            if metadata["role"] == "peer":
+                assert suite.get_benchmark(metadata["figure"]), bench.get_name()
+                continue
+            targets = metadata.get("targets", "").split()
+            for target in targets:
+                verdict = metadata[f"target.{target}.verdict"]
+                assert verdict == ("PASS" if own[target]["pass"] else "FAIL"), target
+            shown += targets
+            expected_rows.append(
+                (
+                    metadata["description"],
+                    "; ".join(metadata[f"target.{t}.verdict"] for t in targets) or "—",
+                )
+            )
+        assert sorted(shown) == sorted(own), name  # every target in exactly one row
+        assert any(b.get_metadata()["role"] == "peer" for b in ours), name
+    # The figures keep every raw sample: pyperf's median is the benchmark's own.
+    kinematics = json.loads((tmp_path / "kinematics.json").read_text())
+    fk = suite.get_benchmark("kinematics/fk-home")
+    entry = kinematics["results"]["fk_home_reachable"]
+    assert fk.get_nvalue() == len(entry["values_s"])
+    assert math.isclose(fk.median(), entry["median_s"] / entry["items"], rel_tol=1e-12)
+    assert fk.get_metadata()["inner_loops"] == entry["items"]
+    assert len(_suite.rows(suite)) == len(expected_rows)
 
     def table(text: str) -> list[list[str]]:
         lines = [line for line in text.splitlines() if line.startswith("| ")]
         return [[c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]] for line in lines]
 
-    header = list(_gather.TABLE_HEADER)
+    header = list(_report.TABLE_HEADER)
     rows = table((tmp_path / "summary.md").read_text())
     assert rows[0] == header
-    assert [(row[0], row[-1]) for row in rows[2:]] == expected_rows
+    assert len(rows[2:]) == len(expected_rows)
+    for row, (label, verdict) in zip(rows[2:], expected_rows, strict=True):
+        assert row[0].startswith(label) and row[-1] == verdict, (row, label, verdict)
 
     # The page shows a full table between its markers, and only there is it replaced.
-    block = page.read_text().split(_gather.START_MARKER)[1].split(_gather.END_MARKER)[0]
+    block = page.read_text().split(_report.START_MARKER)[1].split(_report.END_MARKER)[0]
     page_rows = table(block)
     assert page_rows and page_rows[0] == header, "run `python -m benchmarks --update-docs`"
-    for name in _gather.BENCHMARKS:
+    for name in _figures.BENCHMARKS:
         assert any(row[0].startswith(f"{name}: ") for row in page_rows[2:]), name
-    text = f"a\n{_gather.START_MARKER}\nold\n{_gather.END_MARKER}\nb\n"
-    new = _gather.replace_between_markers(text, "new")
-    assert new == f"a\n{_gather.START_MARKER}\nnew\n{_gather.END_MARKER}\nb\n"
+    text = f"a\n{_report.START_MARKER}\nold\n{_report.END_MARKER}\nb\n"
+    new = _report.replace_between_markers(text, "new")
+    assert new == f"a\n{_report.START_MARKER}\nnew\n{_report.END_MARKER}\nb\n"
+
+
+def _made_suite(path: Path, ours_us: tuple[float, ...], rate: float) -> Path:
+    """A suite like `python -m benchmarks` writes, from known values: one timing with a
+    peer and a target, one fraction (higher is better), and a skipped benchmark."""
+    from benchmarks import _figures, _suite
+
+    fk = _figures.Figure(
+        "fk_home",
+        "kinematics: FK home mode",
+        "time",
+        tuple(v * 1e-6 for v in ours_us),
+        items=10,
+        peer_name="fsolve",
+        peer=(3e-4, 4e-4, 5e-4),
+        ratio=4e-4 / (ours_us[1] * 1e-6),
+        targets=("fk_median",),
+    )
+    home = _figures.valued(
+        "home_rate",
+        "kinematics: answers in the home mode",
+        rate,
+        unit="fraction",
+        peer_name="fsolve",
+        peer=0.25,
+        higher_is_better=True,
+    )
+    targets = {
+        "fk_median": {
+            "figure": "fk_home",
+            "value": ours_us[1] * 1e-6,
+            "threshold": 3e-6,
+            "comparison": "<=",
+            "unit": "s",
+            "pass": ours_us[1] <= 3.0,
+            "verdict": "PASS" if ours_us[1] <= 3.0 else "FAIL",
+        }
+    }
+    outcomes = [
+        _suite.Outcome("kinematics", "ok", 1.0, None, _figures.Analysis([fk, home], targets)),
+        _suite.Outcome("dynamics", "skipped", 0.5, "optional module 'mujoco' is not installed"),
+    ]
+    common = _suite.run_info(outcomes, quick=True, jobs=1, complete=False, load_start=0.5)
+    suite = _suite.build_suite(outcomes, common)
+    out = path / "suite.json"
+    path.mkdir(parents=True, exist_ok=True)
+    suite.dump(str(out))
+    return out
+
+
+def test_table_from_suite(tmp_path: Path) -> None:
+    """`--from SUITE` renders the table from the pyperf suite alone."""
+    from benchmarks import _gather, _report
+
+    path = _made_suite(tmp_path / "run", (1.0, 2.0, 3.0, 4.0, 5.0), 0.75)
+    printed = io.StringIO()
+    assert _gather.main(["--from", str(path)], stream=printed) == 0
+    text = (path.parent / "summary.md").read_text()
+    assert text.strip() in printed.getvalue()
+    assert "Quick run" in text and "Only kinematics, dynamics ran." in text
+    assert "1 of 1 targets passed; 1 benchmark skipped." in text
+    rows = [line for line in text.splitlines() if line.startswith("| ")]
+    assert rows[0] == "| " + " | ".join(_report.TABLE_HEADER) + " |"
+    cells = [[c.strip() for c in line.split("|")[1:-1]] for line in rows[2:]]
+    assert cells == [
+        # pyperf's median and p95 (linear interpolation) of the samples, per item.
+        [
+            "kinematics: FK home mode",
+            "3 us",
+            "4.8 us",
+            "400 us (fsolve)",
+            "200x",
+            "≤ 3 us (2 us)",
+            "PASS",
+        ],
+        ["kinematics: answers in the home mode", "75.0%", "—", "25.0% (fsolve)", "3.00x", "—", "—"],
+        [
+            "dynamics: not run (skipped: optional module 'mujoco' is not installed)",
+            "—",
+            "—",
+            "—",
+            "—",
+            "—",
+            "SKIPPED",
+        ],
+    ]
+    # --check: a failing target fails the run.
+    failing = _made_suite(tmp_path / "bad", (3.0, 4.0, 5.0), 0.75)
+    assert _gather.main(["--from", str(failing), "--check"], stream=io.StringIO()) == 1
+    assert _gather.main(["--from", str(failing)], stream=io.StringIO()) == 0
+
+
+def test_compare_two_suites(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`--compare OLD NEW`: one line per figure, exact ratios, the figure's direction,
+    pyperf's t-test; `python -m pyperf compare_to` reads the same files."""
+    from benchmarks import _gather
+
+    old = _made_suite(tmp_path / "old", (1.0, 2.0, 3.0), 0.5)
+    new = _made_suite(tmp_path / "new", (2.0, 4.0, 6.0), 0.75)
+    printed = io.StringIO()
+    assert _gather.main(["--compare", str(old), str(new)], stream=printed) == 0
+    # Columns are separated by two spaces or more.
+    cells = [re.split(r"\s{2,}", line.strip()) for line in printed.getvalue().splitlines()]
+    lines = {row[0]: row[1:] for row in cells if row and row[0].startswith("kinematics/")}
+    # Medians 2 us -> 4 us; Student's t of [1, 2, 3] against [2, 4, 6]: -2 / sqrt(5 / 3).
+    assert lines["kinematics/fk-home"] == [
+        "2 us",
+        "4 us",
+        "2",
+        "2.00x slower",
+        "not significant (t=-1.55)",
+    ]
+    assert lines["kinematics/fk-home [peer: fsolve]"][:4] == ["400 us", "400 us", "1", "same"]
+    # A fraction: higher is better, one value each (no test).
+    assert lines["kinematics/home-rate"] == [
+        "50.0%",
+        "75.0%",
+        "1.5",
+        "1.50x better",
+        "— (one value)",
+    ]
+    # One file: compared with the latest results, in the default output folder.
+    monkeypatch.setattr(_gather, "RESULTS_DIR", new.parent)
+    latest = io.StringIO()
+    assert _gather.main(["--compare", str(old)], stream=latest) == 0
+    assert latest.getvalue() == printed.getvalue()
+    missing = io.StringIO()
+    status = _gather.main(["--compare", str(old), str(tmp_path / "none.json")], stream=missing)
+    assert status == 2 and "error" in missing.getvalue()
+
+    done = subprocess.run(
+        [sys.executable, "-m", "pyperf", "compare_to", str(old), str(new), "--table"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "kinematics/home-rate" in done.stdout

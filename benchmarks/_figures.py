@@ -1,0 +1,571 @@
+"""The headline figures of each benchmark, picked out of its JSON.
+
+Each ``benchmarks/bench_<name>.py`` writes a JSON file of its own layout; one adapter
+per benchmark (``figures_<name>``) turns it into :class:`Figure` rows: our raw samples
+beside the peer's, measured in the same run, and the names of the targets the row
+shows. :func:`analyse` adds a row for every target that no adapter places, so every
+target reaches the suite even when a benchmark adds one. :mod:`benchmarks._suite`
+stores the rows as pyperf benchmarks.
+
+This module imports only the standard library.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import statistics
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+__all__ = [
+    "BENCHMARKS",
+    "Analysis",
+    "Benchmark",
+    "Figure",
+    "analyse",
+    "timed",
+    "valued",
+]
+
+
+# ----------------------------------------------------------------------- figures
+@dataclasses.dataclass(frozen=True)
+class Figure:
+    """One row of the table: our figure beside the peer's, and the targets it carries.
+
+    Attributes:
+        key: Name of the row within its benchmark (stable: the pyperf benchmark's name
+            is ``<benchmark>/<key>``).
+        label: What the row measures (first column of the table).
+        kind: ``"time"`` (samples in seconds) or ``"value"`` (one measured number in
+            ``unit``: an accuracy, a fraction, a count).
+        ours: Our samples [s], per item for batch calls; or ``(value,)``.
+        unit: ``"s"`` for times; for values ``""``, ``"rad"``, ``"fraction"``,
+            ``"count"``, ``"relative"`` ...
+        items: Items per timed call (batch calls): ``ours`` and ``peer`` are already
+            divided by it.
+        peer_name: Short name of the peer, or None when there is none.
+        peer: The peer's samples (or value), same unit as ours.
+        ratio: How many times better ours is: the benchmark's own ratio when it has one
+            (measured on the same inputs), else from the medians (see :func:`advantage`).
+        higher_is_better: True for counts and fractions; False for times and errors.
+        targets: Names of the benchmark's targets this row shows.
+    """
+
+    key: str
+    label: str
+    kind: str
+    ours: tuple[float, ...]
+    unit: str = "s"
+    items: int = 1
+    peer_name: str | None = None
+    peer: tuple[float, ...] | None = None
+    ratio: float | None = None
+    higher_is_better: bool = False
+    targets: tuple[str, ...] = ()
+
+
+def advantage(ours: float | None, peer: float | None, *, higher_is_better: bool) -> float | None:
+    """How many times better ``ours`` is than ``peer`` (None when undefined): peer / ours
+    when lower is better, ours / peer when higher is better."""
+    if ours is None or peer is None:
+        return None
+    top, bottom = (ours, peer) if higher_is_better else (peer, ours)
+    if bottom == 0 or not math.isfinite(top / bottom):
+        return None
+    return top / bottom
+
+
+def _samples(entry: Mapping[str, Any], items: int) -> tuple[float, ...]:
+    return tuple(float(v) / items for v in entry["values_s"])
+
+
+def timed(
+    key: str,
+    label: str,
+    entry: Mapping[str, Any],
+    *,
+    per_item: bool = False,
+    peer_name: str | None = None,
+    peer: Mapping[str, Any] | None = None,
+    ratio: float | None = None,
+    targets: Sequence[str] = (),
+) -> Figure:
+    """A timing row from two timing entries of a benchmark's JSON.
+
+    Args:
+        entry: Our entry: ``values_s``, every sample (and ``items``).
+        per_item: Divide by ``items`` (batch calls: per solution, per step).
+        peer: The peer's entry, read the same way.
+        ratio: The benchmark's own speed ratio; by default peer median / our median.
+    """
+    ours = _samples(entry, int(entry.get("items", 1)) if per_item else 1)
+    theirs = None
+    if peer is not None:
+        theirs = _samples(peer, int(peer.get("items", 1)) if per_item else 1)
+        if ratio is None:
+            ratio = advantage(
+                statistics.median(ours), statistics.median(theirs), higher_is_better=False
+            )
+    return Figure(
+        key,
+        label,
+        "time",
+        ours,
+        items=int(entry.get("items", 1)) if per_item else 1,
+        peer_name=peer_name if peer is not None else None,
+        peer=theirs,
+        ratio=ratio if peer is not None else None,
+        targets=tuple(targets),
+    )
+
+
+def valued(
+    key: str,
+    label: str,
+    value: float,
+    *,
+    unit: str = "",
+    peer_name: str | None = None,
+    peer: float | None = None,
+    higher_is_better: bool = False,
+    targets: Sequence[str] = (),
+) -> Figure:
+    """An accuracy or count row: one measured value, beside the peer's when given."""
+    return Figure(
+        key,
+        label,
+        "value",
+        (float(value),),
+        unit=unit,
+        peer_name=peer_name if peer is not None else None,
+        peer=None if peer is None else (float(peer),),
+        ratio=advantage(float(value), peer, higher_is_better=higher_is_better),
+        higher_is_better=higher_is_better,
+        targets=tuple(targets),
+    )
+
+
+# ----------------------------------------------------------------------- adapters
+def figures_kinematics(data: Mapping[str, Any]) -> list[Figure]:
+    """FK and IK rates; the peer is scipy fsolve, one input per call."""
+    results, peer = data["results"], data["peer"]
+    fk = results["fk_home_reachable"]
+    n_fk, n_ik = fk["n"], results["ik_reachable"]["n"]
+    return [
+        timed(
+            "fk_home",
+            f"kinematics: FK home mode, per solution (batch of {n_fk:,})",
+            fk,
+            per_item=True,
+            peer_name="fsolve",
+            peer=peer,
+            ratio=peer["speed_ratio_ours_vs_peer"],
+            targets=("fk_home_per_second", "fk_home_speedup_vs_fsolve"),
+        ),
+        timed(
+            "fk_home_uniform",
+            f"kinematics: FK home mode, uniform inputs, per input (batch of "
+            f"{results['fk_home_uniform']['n']:,})",
+            results["fk_home_uniform"],
+            per_item=True,
+            targets=("fk_home_uniform_per_second",),
+        ),
+        timed(
+            "fk_home_single_call",
+            "kinematics: FK home mode, one input per call",
+            results["fk_home_single_call"],
+            peer_name="fsolve",
+            peer=peer,
+            ratio=peer["speed_ratio_ours_single_call_vs_peer"],
+        ),
+        valued(
+            "fk_home_residual",
+            "kinematics: FK closure residual, max",
+            max(fk["max_residual"], fk["max_reported_residual"]),
+            peer_name="fsolve, converged answers",
+            peer=peer["max_equation_residual_converged"],
+            targets=("fk_home_max_residual",),
+        ),
+        valued(
+            "fk_home_mode_rate",
+            "kinematics: answers in the home assembly mode",
+            peer["ours_home_rate"],
+            unit="fraction",
+            peer_name="fsolve",
+            peer=peer["home_rate"],
+            higher_is_better=True,
+        ),
+        timed(
+            "fk_all_modes",
+            "kinematics: FK all assembly modes, per input",
+            results["fk_all_modes"],
+            per_item=True,
+        ),
+        timed(
+            "ik_home",
+            f"kinematics: IK home mode, per rotation (batch of {n_ik:,})",
+            results["ik_reachable"],
+            per_item=True,
+            targets=("ik_per_second",),
+        ),
+    ]
+
+
+def figures_closure(data: Mapping[str, Any]) -> list[Figure]:
+    """Newton projection per call; the peer is scipy least_squares, warm-started."""
+    results, peer = data["results"], data["peer"]
+    residual = max(
+        results[key]["max_residual"] for key in ("warm_1deg", "warm_servo", "cold", "follow_study")
+    )
+    return [
+        timed(
+            "warm_1deg",
+            "closure: project, warm start, 1 deg steps",
+            results["warm_1deg"],
+            peer_name="least_squares",
+            peer=peer["default_tight"],
+            ratio=peer["speed_ratio"],
+            targets=("warm_median", "speedup_vs_least_squares"),
+        ),
+        timed(
+            "warm_1deg_vs_tuned",
+            "closure: project, warm start, vs tuned peer",
+            results["warm_1deg"],
+            peer_name="least_squares lm + exact Jacobian",
+            peer=peer["lm_exact_jacobian_tight"],
+            ratio=peer["speed_ratio_tuned"],
+        ),
+        timed(
+            "warm_servo",
+            "closure: project, warm start, servo path at 1 kHz",
+            results["warm_servo"],
+        ),
+        timed("cold", "closure: project, cold from home", results["cold"]),
+        timed(
+            "follow_study",
+            "closure: follow the study path, per point",
+            results["follow_study"],
+            per_item=True,
+        ),
+        valued(
+            "max_residual",
+            "closure: closure residual, max",
+            residual,
+            peer_name="least_squares",
+            peer=peer["default_tight"]["max_residual"],
+            targets=("max_residual",),
+        ),
+    ]
+
+
+def figures_collision(data: Mapping[str, Any]) -> list[Figure]:
+    """One full self-collision check; the peer is a triangle BVH per link."""
+    results, peer = data["results"], data["peer"]
+    workspace = results["map"]
+    rows = [
+        timed(
+            "check_random",
+            "collision: full self-collision check, random inputs",
+            results["check_random"],
+            peer_name="BVH per link",
+            peer=results["peer_bvh"],
+            ratio=peer["speed_ratio_ours_vs_peer"],
+            targets=("check_median",),
+        ),
+        timed("check_path", "collision: check along a smooth path", results["check_path"]),
+        timed("distances", "collision: exact distances, 19 pairs", results["distances"]),
+    ]
+    map_targets = ("map_1deg",) if "map_1deg" in data["targets"] else ()
+    rows.append(
+        Figure(
+            "map",
+            f"collision: workspace map at {workspace['step_deg']:g} deg "
+            f"({workspace['points']:,} points, {workspace['workers']} processes)",
+            "time",
+            (float(workspace["parallel_s"]),),
+            targets=map_targets,
+        )
+    )
+    return rows
+
+
+def figures_dynamics(data: Mapping[str, Any]) -> list[Figure]:
+    """Simulated steps next to MuJoCo stepping the same MJCF; accuracy figures."""
+    results, comparison = data["results"], data["comparison"]
+    accuracy = data["accuracy"]
+    stiff = accuracy["mujoco_stiff"]
+    mujoco_closure = max(
+        stiff["passive_hanging"]["mujoco_max_closure_residual"],
+        stiff["driven"]["mujoco_max_closure_residual"],
+    )
+    theta_error = max(
+        stiff["passive_hanging"]["max_theta_error_rad"], stiff["driven"]["max_theta_error_rad"]
+    )
+    return [
+        timed(
+            "step_euler_passive",
+            "dynamics: simulator step, passive, semi-implicit Euler",
+            results["ours_euler_passive"],
+            per_item=True,
+            peer_name="MuJoCo",
+            peer=results["mujoco_euler_passive"],
+            ratio=comparison["ours_euler_vs_mujoco_euler_python_loop"],
+            targets=("steps_per_second",),
+        ),
+        timed(
+            "step_euler_passive_c_loop",
+            "dynamics: simulator step, passive, Euler, vs MuJoCo's C loop",
+            results["ours_euler_passive"],
+            per_item=True,
+            peer_name="MuJoCo nstep",
+            peer=results["mujoco_euler_passive_c_loop"],
+        ),
+        timed(
+            "step_euler_servo",
+            "dynamics: simulator step, servo-driven, Euler",
+            results["ours_euler_servo"],
+            per_item=True,
+            peer_name="MuJoCo",
+            peer=results["mujoco_euler_servo"],
+            ratio=comparison["ours_euler_servo_vs_mujoco_euler_servo"],
+        ),
+        timed(
+            "step_rk4_passive",
+            "dynamics: simulator step, passive, RK4",
+            results["ours_rk4_passive"],
+            per_item=True,
+            peer_name="MuJoCo",
+            peer=results["mujoco_rk4_passive"],
+        ),
+        timed(
+            "step_rk4_servo",
+            "dynamics: simulator step, servo-driven, RK4",
+            results["ours_rk4_servo"],
+            per_item=True,
+            peer_name="MuJoCo",
+            peer=results["mujoco_rk4_servo"],
+        ),
+        timed(
+            "inverse_trajectory",
+            "dynamics: inverse dynamics along a move, per sample",
+            results["inverse_trajectory"],
+            per_item=True,
+        ),
+        timed(
+            "forward_pinocchio",
+            "dynamics: forward dynamics, one call",
+            results["forward_pinocchio"],
+            per_item=True,
+        ),
+        valued(
+            "closure_drift",
+            "dynamics: closure residual, max over every run",
+            data["targets"]["closure_drift"]["value"],
+            unit="rad",
+            peer_name="MuJoCo stiff welds",
+            peer=mujoco_closure,
+            targets=("closure_drift",),
+        ),
+        valued(
+            "energy_drift",
+            f"dynamics: energy drift, RK4, {accuracy['energy']['duration_s']:g} s frictionless",
+            accuracy["energy"]["relative_drift"],
+            unit="relative",
+            targets=("energy_drift",),
+        ),
+        valued(
+            "mujoco_theta_agreement",
+            f"dynamics: input angles against MuJoCo over {accuracy['duration_s']:g} s, max",
+            theta_error,
+            unit="rad",
+            targets=("mujoco_theta_agreement",),
+        ),
+    ]
+
+
+def figures_hardware(data: Mapping[str, Any]) -> list[Figure]:
+    """The sync loop's stages on the emulated bus; Fast Sync Read beside plain."""
+    results = data["results"]
+    bus = results["bus"]
+    return [
+        timed(
+            "loop_software",
+            "hardware: sync loop, software part (kinematics + guard)",
+            results["loop"]["software"],
+            targets=("software_per_second",),
+        ),
+        timed("loop_cycle", "hardware: sync loop, whole cycle", results["loop"]["cycle"]),
+        timed(
+            "loop_with_model_cycle",
+            "hardware: sync loop with the model update, whole cycle",
+            results["loop_with_model"]["cycle"],
+        ),
+        timed(
+            "sync_read",
+            "hardware: Fast Sync Read of 3 servos",
+            bus["sync_read_fast"],
+            peer_name="plain Sync Read",
+            peer=bus["sync_read_plain"],
+        ),
+        timed("guard_cold", "hardware: safety check of a new goal", results["guard_cold"]),
+    ]
+
+
+def figures_calibration(data: Mapping[str, Any]) -> list[Figure]:
+    """Identification time; the peer is the same solve with finite differences."""
+    results, peer = data["results"], data["peer"]
+    analytic = results["analytic"]
+    return [
+        timed(
+            "analytic",
+            f"calibration: identify {analytic['parameters']} parameters, "
+            f"{analytic['readings']} readings",
+            analytic,
+            peer_name="2-point differences",
+            peer=peer,
+            ratio=peer["speed_ratio_ours_vs_peer"],
+            targets=("identification_seconds",),
+        ),
+        valued(
+            "identified",
+            "calibration: parameters identified",
+            analytic["identified"],
+            unit="count",
+            peer_name="2-point differences",
+            peer=peer["identified"],
+            higher_is_better=True,
+            targets=("parameters_identified",),
+        ),
+        timed(
+            "analytic_12",
+            "calibration: identify 12 parameters (sensor frame free)",
+            results["analytic_12"],
+        ),
+        timed("parse", "calibration: read the readings CSV", results["parse"]),
+    ]
+
+
+@dataclasses.dataclass(frozen=True)
+class Benchmark:
+    """One benchmark of the suite.
+
+    Attributes:
+        name: ``bench_<name>.py``; also the JSON's ``benchmark`` entry.
+        peer: What the figures are compared with (legend of the table).
+        figures: The adapter: headline rows out of the benchmark's JSON.
+    """
+
+    name: str
+    peer: str
+    figures: Callable[[Mapping[str, Any]], list[Figure]]
+
+    @property
+    def module(self) -> str:
+        """The module that ``python -m`` runs."""
+        return f"benchmarks.bench_{self.name}"
+
+
+#: Every benchmark, in the order they run and appear in the table.
+BENCHMARKS: dict[str, Benchmark] = {
+    b.name: b
+    for b in (
+        Benchmark(
+            "kinematics",
+            "scipy.optimize.fsolve on the 9 closure equations, one input per call",
+            figures_kinematics,
+        ),
+        Benchmark(
+            "closure",
+            "scipy.optimize.least_squares on the same Pinocchio residual, warm-started "
+            "(tolerances 1e-15, so that it reaches the same closure)",
+            figures_closure,
+        ),
+        Benchmark(
+            "collision",
+            "Pinocchio computeCollisions on one coal triangle BVH per link, 19 pairs",
+            figures_collision,
+        ),
+        Benchmark(
+            "dynamics",
+            "MuJoCo stepping the same MJCF at 1 ms, mj_step called from Python",
+            figures_dynamics,
+        ),
+        Benchmark(
+            "hardware",
+            "no peer for the loop; the plain (one reply per servo) Sync Read beside the "
+            "Fast Sync Read",
+            figures_hardware,
+        ),
+        Benchmark(
+            "calibration",
+            "the same least-squares problem with scipy's 2-point finite-difference Jacobian",
+            figures_calibration,
+        ),
+    )
+}
+
+
+# ------------------------------------------------------------------------ targets
+@dataclasses.dataclass(frozen=True)
+class Analysis:
+    """The rows and targets of one benchmark's JSON.
+
+    Attributes:
+        figures: The rows, in table order; each target is named by exactly one.
+        targets: Every target by name: ``value``, ``threshold``, ``comparison``
+            (``">="`` or ``"<="``), ``unit``, ``pass``, ``verdict`` and ``figure``
+            (the key of its row).
+        adapter_error: What went wrong when the adapter did not understand the JSON
+            (its layout changed); the targets still get a row each.
+    """
+
+    figures: list[Figure]
+    targets: dict[str, dict[str, Any]]
+    adapter_error: str | None = None
+
+    @property
+    def all_pass(self) -> bool:
+        """Every target passed."""
+        return all(t["pass"] for t in self.targets.values())
+
+
+def analyse(benchmark: Benchmark, data: Mapping[str, Any]) -> Analysis:
+    """The rows and targets of one benchmark's JSON (``data``).
+
+    A target goes to the first row that names it; a target that no row names gets a
+    row of its own; one the JSON lacks (this run did not evaluate it, e.g. the
+    1-degree map of a quick run) is left out.
+    """
+    try:
+        figures = benchmark.figures(data)
+        adapter_error = None
+    except (KeyError, TypeError, ValueError, ZeroDivisionError) as exc:
+        figures, adapter_error = [], f"{type(exc).__name__}: {exc}"
+    raw = {k: v for k, v in data.get("targets", {}).items() if isinstance(v, Mapping)}
+    owner: dict[str, str] = {}
+    rows: list[Figure] = []
+    for figure in figures:
+        names = tuple(n for n in dict.fromkeys(figure.targets) if n in raw and n not in owner)
+        owner.update(dict.fromkeys(names, figure.key))
+        rows.append(dataclasses.replace(figure, targets=names))
+    for name, record in raw.items():
+        if name not in owner:
+            value = float(record["value"]) if record.get("value") is not None else math.nan
+            figure = valued(name, f"{benchmark.name}: {name}", value, targets=(name,))
+            rows.append(dataclasses.replace(figure, unit=str(record.get("unit", ""))))
+            owner[name] = name
+    targets = {
+        name: {
+            "figure": owner[name],
+            "value": record.get("value"),
+            "threshold": record.get("threshold"),
+            "comparison": record.get("comparison"),
+            "unit": record.get("unit", ""),
+            "pass": bool(record.get("pass")),
+            "verdict": "PASS" if record.get("pass") else "FAIL",
+        }
+        for name, record in raw.items()
+    }
+    return Analysis(rows, targets, adapter_error)
