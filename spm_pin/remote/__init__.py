@@ -1,0 +1,78 @@
+"""The robot model over the network: an HTTP + JSON API of a twin (``spm serve``).
+
+Needs the ``remote`` extra (``pip install "spm-pin[remote]"``, which brings FastAPI,
+uvicorn and pydantic); ``import spm_pin`` never imports this package.
+
+* :class:`KinematicBackend`: the model alone, a twin whose input angles jump to each
+  goal that the safety guard (:class:`~spm_pin.hardware.guard.SafetyGuard`, the
+  same one that guards the servos) accepts. :class:`TwinBackend` is what every twin
+  provides.
+* :func:`create_app`: the FastAPI application with the resources ``/state``,
+  ``/joints``, ``/orientation``, ``/collisions``, ``/check`` and ``/stop`` (see
+  :mod:`spm_pin.remote.app` for the status codes).
+* :func:`serve`: serve it with uvicorn (127.0.0.1:8750 by default; other addresses
+  only with a bearer token, :func:`load_token`); :class:`BackgroundServer`: the same
+  in a thread of this process.
+"""
+
+from __future__ import annotations
+
+try:
+    import fastapi  # noqa: F401
+    import pydantic  # noqa: F401
+    import uvicorn  # noqa: F401
+except ImportError as exc:  # pragma: no cover - depends on the installation
+    raise ImportError(
+        f"spm_pin.remote needs FastAPI, uvicorn and pydantic ({exc}); install them with: "
+        'pip install "spm-pin[remote]"'
+    ) from exc
+
+from .app import DEFAULT_MAX_BODY_BYTES, OPEN_PATHS, create_app
+from .backend import (
+    CHECK_NAMES,
+    CheckOutcome,
+    CollisionState,
+    GoalRefusedError,
+    GoalReport,
+    KinematicBackend,
+    PairState,
+    TwinBackend,
+    TwinState,
+)
+from .server import (
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    TOKEN_ENVIRONMENT_VARIABLE,
+    BackgroundServer,
+    check_binding,
+    is_loopback,
+    load_token,
+    serve,
+)
+
+#: The command that installs what this package needs.
+INSTALL_REMOTE = 'pip install "spm-pin[remote]"'
+
+__all__ = [
+    "CHECK_NAMES",
+    "DEFAULT_HOST",
+    "DEFAULT_MAX_BODY_BYTES",
+    "DEFAULT_PORT",
+    "INSTALL_REMOTE",
+    "OPEN_PATHS",
+    "TOKEN_ENVIRONMENT_VARIABLE",
+    "BackgroundServer",
+    "CheckOutcome",
+    "CollisionState",
+    "GoalRefusedError",
+    "GoalReport",
+    "KinematicBackend",
+    "PairState",
+    "TwinBackend",
+    "TwinState",
+    "check_binding",
+    "create_app",
+    "is_loopback",
+    "load_token",
+    "serve",
+]

@@ -1,0 +1,466 @@
+"""Twin backends: what the server drives, without any web code.
+
+A backend holds the robot's state and moves it, one goal at a time, after the safety
+guard (:class:`~spm_pin.hardware.guard.SafetyGuard`, the same one that guards the
+servos) has accepted the goal. :class:`TwinBackend` is the protocol every backend
+follows; :class:`KinematicBackend` is the model alone: a twin whose input angles
+jump to each accepted goal.
+
+Every public method of a backend takes its lock: Pinocchio's data (and the guard's
+cache) are not safe to share between threads, and the server runs requests in a
+thread pool.
+
+A goal is judged by the guard (joint limits, home assembly mode, singularity margin,
+dexterity, collisions with the guard's margin) and, besides, by a collision check in
+whichever assembly mode exists there (:func:`~spm_pin.collision.check_input`): where
+the home assembly mode does not exist, the report still names the links that collide
+in the real assembly mode nearest to it, as the published study showed at
+theta = [60, 90, 220] deg.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+import time
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from .._checks import as_rotation
+from ..design import SPMDesign
+from ..errors import InputError, UnreachableError, UnsafeCommandError
+from ..kinematics import forward_kinematics, inverse_kinematics, jacobian
+from ..kinematics._common import mode_label
+
+if TYPE_CHECKING:
+    from ..hardware.config import SafetyLimits
+    from ..hardware.guard import SafetyGuard, Verdict
+    from ..model.robot import SPMRobot
+
+__all__ = [
+    "CHECK_NAMES",
+    "CheckOutcome",
+    "CollisionState",
+    "GoalRefusedError",
+    "GoalReport",
+    "KinematicBackend",
+    "PairState",
+    "TwinBackend",
+    "TwinState",
+]
+
+FloatArray = npt.NDArray[np.float64]
+LinkPair = tuple[str, str]
+
+#: The checks a goal passes, in the order they are reported.
+CHECK_NAMES = ("joint_limits", "reachable", "singularity", "dexterity", "collision")
+
+#: Words of the guard's reasons -> the check they belong to (first match wins).
+_REASON_WORDS = (
+    ("joint limits", "joint_limits"),
+    ("not finite", "joint_limits"),
+    ("unreachable", "reachable"),
+    ("singularity", "singularity"),
+    ("dexterity", "dexterity"),
+    ("collide", "collision"),
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class CheckOutcome:
+    """One check of a goal.
+
+    Attributes:
+        name: One of :data:`CHECK_NAMES` (or ``"other"`` for a reason of the guard
+            that none of them covers).
+        passed: The goal passes it; None where it could not be evaluated (the
+            singularity and dexterity of an input without a home-mode assembly).
+        reason: Why not (None when passed).
+    """
+
+    name: str
+    passed: bool | None
+    reason: str | None
+
+
+class GoalRefusedError(UnsafeCommandError):
+    """A goal that the server refused; nothing moved.
+
+    Attributes:
+        report: The verdict on the goal, every check with its outcome.
+    """
+
+    def __init__(self, message: str, report: GoalReport) -> None:
+        super().__init__(message, reasons=report.reasons, goal=report.theta)
+        self.report = report
+
+
+@dataclasses.dataclass(frozen=True)
+class GoalReport:
+    """The verdict on one goal, as the server reports it.
+
+    Attributes:
+        theta: The goal [rad], (3,).
+        safe: The guard accepts it and no links collide in any existing assembly mode.
+        reasons: Why not, one sentence per failed check (empty when safe).
+        checks: Every check of :data:`CHECK_NAMES` with its outcome.
+        reachable: The home assembly mode exists.
+        singularity_margin: Distance to singularity in [0, 1] (NaN if unreachable).
+        dexterity: 1/kappa(J) in [0, 1] (NaN if unreachable).
+        pairs: Colliding link pairs: the guard's (with its margin) and those of the
+            assembly mode checked by :func:`~spm_pin.collision.check_input`.
+        assembly: The assembly mode the collisions were checked in (``"+++/-"``
+            style), or None when no real assembly exists.
+        min_distance: Smallest distance between two checked links [m] (negative on
+            overlap).
+        collision_margin: The guard's collision margin [m].
+    """
+
+    theta: FloatArray
+    safe: bool
+    reasons: tuple[str, ...]
+    checks: tuple[CheckOutcome, ...]
+    reachable: bool
+    singularity_margin: float
+    dexterity: float
+    pairs: tuple[LinkPair, ...]
+    assembly: str | None
+    min_distance: float
+    collision_margin: float
+
+    @property
+    def failed(self) -> tuple[CheckOutcome, ...]:
+        """The checks that failed."""
+        return tuple(check for check in self.checks if check.passed is False)
+
+    def require(self) -> GoalReport:
+        """Return self when safe; else raise GoalRefusedError (an UnsafeCommandError)."""
+        if not self.safe:
+            where = np.degrees(self.theta).round(6).tolist()
+            raise GoalRefusedError(
+                f"goal theta = {where} deg refused, nothing moved: " + "; ".join(self.reasons),
+                self,
+            )
+        return self
+
+
+@dataclasses.dataclass(frozen=True)
+class PairState:
+    """One checked link pair at the current state.
+
+    Attributes:
+        pair: The two link names.
+        colliding: The links overlap (no margin).
+        distance: Their distance [m] (negative: depth of overlap).
+    """
+
+    pair: LinkPair
+    colliding: bool
+    distance: float
+
+
+@dataclasses.dataclass(frozen=True)
+class CollisionState:
+    """Every checked link pair at one state.
+
+    Attributes:
+        theta: The input angles [rad], (3,).
+        pairs: Each checked link pair, in the order of
+            :data:`~spm_pin.collision.LINK_PAIRS`.
+    """
+
+    theta: FloatArray
+    pairs: tuple[PairState, ...]
+
+    @property
+    def collision(self) -> bool:
+        """Some pair collides."""
+        return any(pair.colliding for pair in self.pairs)
+
+
+@dataclasses.dataclass(frozen=True)
+class TwinState:
+    """The twin's state.
+
+    Attributes:
+        theta: Input angles [rad], (3,).
+        R: Platform rotation (3, 3), or None without a home-mode assembly.
+        reachable: The home assembly mode exists.
+        pairs: Colliding link pairs (no margin).
+        min_distance: Smallest distance between two checked links [m].
+        dexterity: 1/kappa(J) in [0, 1] (NaN if unreachable).
+        singularity_margin: Distance to singularity in [0, 1] (NaN if unreachable).
+        assembly: Assembly-mode label such as ``"+++/-"`` (None if unreachable).
+        backend: The backend's name (``"kinematic"``).
+        time: Server time when the state was read [s since the epoch].
+        moving: A motion is in progress (never for the kinematic twin).
+    """
+
+    theta: FloatArray
+    R: FloatArray | None
+    reachable: bool
+    pairs: tuple[LinkPair, ...]
+    min_distance: float
+    dexterity: float
+    singularity_margin: float
+    assembly: str | None
+    backend: str
+    time: float
+    moving: bool = False
+
+
+class TwinBackend(Protocol):
+    """What the server needs of a twin (the kinematic model now; the simulated
+    dynamics and the servos follow the same protocol).
+
+    Every method is safe to call from several threads.
+    """
+
+    name: str
+    design: SPMDesign
+    guard: SafetyGuard
+
+    def state(self) -> TwinState:
+        """The current state."""
+        ...
+
+    def joints(self) -> FloatArray:
+        """The current input angles [rad], (3,)."""
+        ...
+
+    def check(self, theta: npt.ArrayLike) -> GoalReport:
+        """The verdict on a goal [rad], without moving."""
+        ...
+
+    def move(self, theta: npt.ArrayLike) -> TwinState:
+        """Move to a goal [rad] if it is safe; raise GoalRefusedError (nothing
+        moves) if not."""
+        ...
+
+    def solve(self, R: npt.ArrayLike) -> FloatArray:
+        """Input angles [rad] that put the platform at rotation R (home working mode);
+        raise UnreachableError if there are none."""
+        ...
+
+    def collisions(self) -> CollisionState:
+        """Every checked link pair at the current state."""
+        ...
+
+    def stop(self) -> TwinState:
+        """Halt any motion in progress; return the state."""
+        ...
+
+
+def _theta(theta: npt.ArrayLike) -> FloatArray:
+    try:
+        values = np.array(theta, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"theta must be 3 angles [rad], got {theta!r}", argument="theta", value=theta
+        ) from None
+    if values.shape != (3,) or not np.all(np.isfinite(values)):
+        raise InputError(
+            f"theta must be 3 finite angles [rad], got {values.tolist()}",
+            argument="theta",
+            value=theta,
+        )
+    return values
+
+
+def _check_of(reason: str) -> str:
+    """The check a reason of the guard belongs to (``"other"`` if none)."""
+    for words, name in _REASON_WORDS:
+        if words in reason:
+            return name
+    return "other"
+
+
+class KinematicBackend:
+    """The model alone: a twin whose input angles jump to each accepted goal.
+
+    Args:
+        design: The SPM (default: the prototype); ignored when ``robot`` is given.
+        robot: The robot with its collision checker (default
+            ``spm.build_robot(design)``).
+        limits: The guard's limits (default
+            :class:`~spm_pin.hardware.config.SafetyLimits`).
+        theta: The starting input angles [rad] (default: home, [0, 0, 0]); must be
+            safe.
+
+    Attributes:
+        name: ``"kinematic"``.
+        design: The design of the robot.
+        robot: The robot model.
+        guard: The safety guard every goal passes.
+    """
+
+    name = "kinematic"
+
+    def __init__(
+        self,
+        design: SPMDesign | None = None,
+        *,
+        robot: SPMRobot | None = None,
+        limits: SafetyLimits | None = None,
+        theta: npt.ArrayLike | None = None,
+    ) -> None:
+        from ..collision import build_robot
+        from ..hardware.guard import SafetyGuard
+
+        if robot is None:
+            robot = build_robot(design or SPMDesign.prototype())
+        self.robot: SPMRobot = robot
+        self.design: SPMDesign = robot.design
+        self.guard: SafetyGuard = SafetyGuard(robot, limits)
+        self._lock = threading.Lock()
+        start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
+        self._report(start).require()
+        self._theta: FloatArray = start
+        self._state = self._compute_state(start)
+
+    def __repr__(self) -> str:
+        return f"KinematicBackend(design={self.design.name!r})"
+
+    # ---------------------------------------------------------------- private
+    def _report(self, theta: FloatArray) -> GoalReport:
+        from ..collision import check_input
+
+        verdict: Verdict = self.guard.check(theta)
+        limits = self.guard.limits
+        report = check_input(theta, self.robot, margin=limits.collision_margin)
+        pairs = list(verdict.collisions)
+        pairs += [pair for pair in report.pairs if pair not in pairs]
+        reasons = list(verdict.reasons)
+        if report.pairs and not verdict.collisions:
+            names = ", ".join(f"{a}-{b}" for a, b in report.pairs)
+            where = "no real assembly" if report.mode is None else f"assembly mode {report.mode}"
+            reasons.append(
+                f"links collide (margin {limits.collision_margin * 1e3:g} mm, {where}): {names}"
+            )
+        grouped: dict[str, list[str]] = {name: [] for name in (*CHECK_NAMES, "other")}
+        for reason in reasons:
+            grouped[_check_of(reason)].append(reason)
+        checks = []
+        for name in CHECK_NAMES if not grouped["other"] else (*CHECK_NAMES, "other"):
+            passed: bool | None = not grouped[name]
+            if passed and not verdict.reachable and name in ("singularity", "dexterity"):
+                passed = None
+            checks.append(CheckOutcome(name, passed, "; ".join(grouped[name]) or None))
+        return GoalReport(
+            theta=theta.copy(),
+            safe=verdict.safe and not report.pairs,
+            reasons=tuple(reasons),
+            checks=tuple(checks),
+            reachable=verdict.reachable,
+            singularity_margin=verdict.singularity_margin,
+            dexterity=verdict.dexterity,
+            pairs=tuple(pairs),
+            assembly=report.mode,
+            min_distance=report.min_distance,
+            collision_margin=limits.collision_margin,
+        )
+
+    def _compute_state(self, theta: FloatArray) -> TwinState:
+        from ..collision import check_input
+
+        fk = forward_kinematics(theta, self.design)
+        reachable = bool(fk.reachable)
+        R: FloatArray | None = None
+        dexterity = margin = math.nan
+        label: str | None = None
+        if reachable:
+            R = np.array(fk.R, dtype=float)
+            jac = jacobian(theta[None], self.design, R=R[None])
+            dexterity = float(jac.dexterity[0])
+            margin = float(jac.singularity_margin[0])
+            label = mode_label(jac.b[0]) + ("/+" if float(jac.det_a[0]) > 0 else "/-")
+        report = check_input(theta, self.robot)
+        return TwinState(
+            theta=theta.copy(),
+            R=R,
+            reachable=reachable,
+            pairs=report.pairs,
+            min_distance=report.min_distance,
+            dexterity=dexterity,
+            singularity_margin=margin,
+            assembly=label,
+            backend=self.name,
+            time=time.time(),
+        )
+
+    # ---------------------------------------------------------------- public
+    def state(self) -> TwinState:
+        """The current state (its ``time`` is now)."""
+        with self._lock:
+            return dataclasses.replace(self._state, time=time.time())
+
+    def joints(self) -> FloatArray:
+        """The current input angles [rad], (3,)."""
+        with self._lock:
+            theta: FloatArray = self._theta.copy()
+        return theta
+
+    def check(self, theta: npt.ArrayLike) -> GoalReport:
+        """The verdict on a goal [rad], (3,), without moving.
+
+        Raises:
+            InputError: not 3 finite numbers.
+        """
+        goal = _theta(theta)
+        with self._lock:
+            return self._report(goal)
+
+    def move(self, theta: npt.ArrayLike) -> TwinState:
+        """Jump to a goal [rad], (3,), if it is safe.
+
+        Raises:
+            InputError: not 3 finite numbers.
+            GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
+                ``report`` says why); the state is unchanged.
+        """
+        goal = _theta(theta)
+        with self._lock:
+            self._report(goal).require()
+            self._state = self._compute_state(goal)
+            self._theta = goal
+            return dataclasses.replace(self._state, time=time.time())
+
+    def solve(self, R: npt.ArrayLike) -> FloatArray:
+        """Input angles [rad] for platform rotation R, home working mode (as ``spm ik``).
+
+        Raises:
+            InputError: R is not a rotation matrix.
+            UnreachableError: some leg cannot close; the message names them.
+        """
+        rotation = as_rotation(R, "R")
+        with self._lock:
+            ik = inverse_kinematics(rotation[None], self.design)
+        legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
+        if legs:
+            raise UnreachableError(
+                f"the orientation is out of reach of design {self.design.name!r}: "
+                f"leg(s) {legs} cannot close (no input angle puts w_i at alpha2 from v_i)",
+                leg=legs[0] if len(legs) == 1 else None,
+                value=rotation,
+            )
+        return np.array(ik.theta[0], dtype=float)
+
+    def collisions(self) -> CollisionState:
+        """Every checked link pair at the current state (no margin)."""
+        from ..collision import check_input
+
+        with self._lock:
+            theta = self._theta.copy()
+            report = check_input(theta, self.robot)
+        pairs = tuple(
+            PairState(pair, pair in report.pairs, float(distance))
+            for pair, distance in report.distances.items()
+        )
+        return CollisionState(theta, pairs)
+
+    def stop(self) -> TwinState:
+        """Nothing is ever in motion in the kinematic twin: the state."""
+        return self.state()

@@ -1,0 +1,235 @@
+"""The JSON bodies of the HTTP API, as pydantic models.
+
+Requests are strict: unknown keys, numbers that are not finite (NaN, Infinity),
+strings or booleans in place of numbers and lists of the wrong length are refused
+(422, naming the field). Angles are degrees on the wire (the key says the unit);
+``null`` stands where a value does not exist (no NaN or infinity is ever sent).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from ..rotations import quaternion_from_matrix, rpy_from_matrix
+from .backend import CHECK_NAMES, CollisionState, GoalReport, TwinState
+
+__all__ = [
+    "CheckModel",
+    "CheckRequest",
+    "CheckResponse",
+    "CollisionsResponse",
+    "ErrorResponse",
+    "GoalRefusedResponse",
+    "JointsGoal",
+    "JointsResponse",
+    "OrientationGoal",
+    "PairModel",
+    "StateResponse",
+    "check_response",
+    "collisions_response",
+    "finite_or_none",
+    "state_response",
+]
+
+#: A finite JSON number (an integer or a float; not a string, a boolean, NaN or Infinity).
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+Vector3 = tuple[Number, Number, Number]
+Vector4 = tuple[Number, Number, Number, Number]
+LinkPairModel = tuple[str, str]
+
+
+class _Request(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class JointsGoal(_Request):
+    """``PUT /joints``: the goal's input angles."""
+
+    theta_deg: Vector3 = Field(description="Input angles theta_1..3 [deg].")
+
+
+class OrientationGoal(_Request):
+    """``PUT /orientation``: the goal's platform orientation, exactly one of two forms."""
+
+    rpy_deg: Vector3 | None = Field(
+        default=None, description="Fixed-axis angles [deg]: R = Rz(yaw) Ry(pitch) Rx(roll)."
+    )
+    quaternion_wxyz: Vector4 | None = Field(
+        default=None, description="Unit quaternion, scalar first (normalised)."
+    )
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> OrientationGoal:
+        given = [name for name in ("rpy_deg", "quaternion_wxyz") if getattr(self, name) is not None]
+        if len(given) != 1:
+            raise ValueError(
+                f"give exactly one of rpy_deg or quaternion_wxyz, got {given or 'neither'}"
+            )
+        return self
+
+
+class CheckRequest(_Request):
+    """``POST /check``: a goal as input angles or as an orientation, exactly one."""
+
+    theta_deg: Vector3 | None = Field(default=None, description="Input angles [deg].")
+    rpy_deg: Vector3 | None = Field(default=None, description="Fixed-axis angles [deg].")
+    quaternion_wxyz: Vector4 | None = Field(default=None, description="Quaternion (w, x, y, z).")
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> CheckRequest:
+        names = ("theta_deg", "rpy_deg", "quaternion_wxyz")
+        given = [name for name in names if getattr(self, name) is not None]
+        if len(given) != 1:
+            raise ValueError(
+                f"give exactly one of theta_deg, rpy_deg or quaternion_wxyz, got {given or 'none'}"
+            )
+        return self
+
+
+class _Response(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class StateResponse(_Response):
+    """The twin's state."""
+
+    theta_deg: list[float] = Field(description="Input angles [deg].")
+    R: list[list[float]] | None = Field(description="Platform rotation, row by row.")
+    quaternion_wxyz: list[float] | None = Field(description="Platform orientation (w >= 0).")
+    rpy_deg: list[float] | None = Field(description="Roll, pitch, yaw [deg].")
+    reachable: bool = Field(description="The home assembly mode exists.")
+    pairs: list[LinkPairModel] = Field(description="Colliding link pairs.")
+    min_distance_m: float | None = Field(description="Smallest distance of two links [m].")
+    dexterity: float | None = Field(description="1/kappa(J) in [0, 1].")
+    singularity_margin: float | None = Field(description="Distance to singularity in [0, 1].")
+    assembly: str | None = Field(description="Assembly-mode label such as +++/-.")
+    backend: str = Field(description="The twin: kinematic.")
+    moving: bool = Field(description="A motion is in progress.")
+    time: float = Field(description="Server time [s since the epoch].")
+
+
+class JointsResponse(_Response):
+    """The input angles."""
+
+    theta_deg: list[float] = Field(description="Input angles [deg].")
+
+
+class PairModel(_Response):
+    """One checked link pair."""
+
+    pair: LinkPairModel
+    colliding: bool
+    distance_m: float | None = Field(description="Distance [m], negative on overlap.")
+
+
+class CollisionsResponse(_Response):
+    """Every checked link pair at the current state."""
+
+    theta_deg: list[float]
+    collision: bool = Field(description="Some pair collides.")
+    pairs: list[PairModel]
+
+
+class CheckModel(_Response):
+    """One check of a goal."""
+
+    check: str = Field(description=f"One of {', '.join(CHECK_NAMES)}.")
+    passed: bool | None = Field(description="null: not evaluated (no home-mode assembly).")
+    reason: str | None
+
+
+class CheckResponse(_Response):
+    """The verdict on a goal (``POST /check``)."""
+
+    theta_deg: list[float] = Field(description="The goal's input angles [deg].")
+    safe: bool
+    checks: list[CheckModel]
+    reasons: list[str]
+    reachable: bool
+    pairs: list[LinkPairModel] = Field(description="Colliding link pairs (with margin).")
+    assembly: str | None = Field(description="Assembly mode the collisions were checked in.")
+    min_distance_m: float | None
+    collision_margin_m: float
+    dexterity: float | None
+    singularity_margin: float | None
+
+
+class ErrorResponse(_Response):
+    """A refused request: what went wrong."""
+
+    detail: str
+    error: str = Field(description="The kind of error, e.g. UnreachableError.")
+
+
+class GoalRefusedResponse(_Response):
+    """A goal the guard refused (409): nothing moved."""
+
+    detail: str
+    error: str
+    failed: list[CheckModel] = Field(description="The failed checks with their reasons.")
+    verdict: CheckResponse
+
+
+def finite_or_none(value: Any) -> float | None:
+    """A float, or None where it is NaN or infinite."""
+    number = float(value) + 0.0  # -0.0 -> 0.0
+    return number if math.isfinite(number) else None
+
+
+def _degrees(theta: Any) -> list[float]:
+    return [float(x) + 0.0 for x in np.degrees(np.asarray(theta, dtype=float))]
+
+
+def state_response(state: TwinState) -> StateResponse:
+    """The JSON form of a state."""
+    R = state.R
+    return StateResponse(
+        theta_deg=_degrees(state.theta),
+        R=None if R is None else [[float(x) for x in row] for row in R],
+        quaternion_wxyz=None if R is None else [float(x) for x in quaternion_from_matrix(R)],
+        rpy_deg=None if R is None else _degrees(rpy_from_matrix(R)),
+        reachable=state.reachable,
+        pairs=[(a, b) for a, b in state.pairs],
+        min_distance_m=finite_or_none(state.min_distance),
+        dexterity=finite_or_none(state.dexterity),
+        singularity_margin=finite_or_none(state.singularity_margin),
+        assembly=state.assembly,
+        backend=state.backend,
+        moving=state.moving,
+        time=state.time,
+    )
+
+
+def check_response(report: GoalReport) -> CheckResponse:
+    """The JSON form of a verdict."""
+    return CheckResponse(
+        theta_deg=_degrees(report.theta),
+        safe=report.safe,
+        checks=[CheckModel(check=c.name, passed=c.passed, reason=c.reason) for c in report.checks],
+        reasons=list(report.reasons),
+        reachable=report.reachable,
+        pairs=[(a, b) for a, b in report.pairs],
+        assembly=report.assembly,
+        min_distance_m=finite_or_none(report.min_distance),
+        collision_margin_m=report.collision_margin,
+        dexterity=finite_or_none(report.dexterity),
+        singularity_margin=finite_or_none(report.singularity_margin),
+    )
+
+
+def collisions_response(collisions: CollisionState) -> CollisionsResponse:
+    """The JSON form of the link pairs at a state."""
+    return CollisionsResponse(
+        theta_deg=_degrees(collisions.theta),
+        collision=collisions.collision,
+        pairs=[
+            PairModel(
+                pair=pair.pair, colliding=pair.colliding, distance_m=finite_or_none(pair.distance)
+            )
+            for pair in collisions.pairs
+        ],
+    )

@@ -1,0 +1,618 @@
+"""The HTTP API of the twin (spm_pin.remote) against a real server.
+
+uvicorn serves the application in a background thread on a free loopback port and
+httpx sends real HTTP requests (no test client, no mocks). What the server answers is
+checked against the library run in this process: forward kinematics, the robot's
+collision checks and distances, the safety guard. ``spm serve`` is started as a user
+would, in a subprocess.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fastapi")
+pytest.importorskip("uvicorn")
+httpx = pytest.importorskip("httpx")
+
+import uvicorn  # noqa: E402
+
+import spm_pin as spm  # noqa: E402
+from spm_pin.collision import LINK_PAIRS  # noqa: E402
+from spm_pin.errors import InputError  # noqa: E402
+from spm_pin.hardware.guard import SafetyGuard  # noqa: E402
+from spm_pin.remote import (  # noqa: E402
+    BackgroundServer,
+    KinematicBackend,
+    check_binding,
+    create_app,
+    is_loopback,
+    load_token,
+    serve,
+)
+from spm_pin.rotations import (  # noqa: E402
+    matrix_from_quaternion,
+    matrix_from_rpy,
+    quaternion_from_matrix,
+    rpy_from_matrix,
+)
+
+#: Tolerances, by what is compared.
+TOL = {
+    "same_numbers": 1e-12,  # the server and this process compute the same floats
+    "orientation": 1e-9,  # the reached orientation against the asked one
+    "angles_deg": 1e-9,  # angles sent and read back [deg]
+}
+#: The published study's input with a link collision [deg] and its colliding pairs.
+STUDY_COLLISION_DEG = [60.0, 90.0, 220.0]
+STUDY_COLLISION_PAIRS = {
+    ("proximal_2", "proximal_3"),
+    ("proximal_2", "distal_3"),
+    ("proximal_3", "distal_2"),
+    ("distal_2", "distal_3"),
+}
+SAFE_DEG = [60.0, 90.0, 120.0]
+TOKEN = "test-token-0123456789abcdef"
+STATE_KEYS = {
+    "theta_deg",
+    "R",
+    "quaternion_wxyz",
+    "rpy_deg",
+    "reachable",
+    "pairs",
+    "min_distance_m",
+    "dexterity",
+    "assembly",
+    "backend",
+    "time",
+}
+#: Seconds for a subprocess server to answer, and for one request.
+STARTUP_TIMEOUT = 90.0
+REQUEST_TIMEOUT = 30.0
+
+
+# --------------------------------------------------------------------------- fixtures
+class _Thread:
+    """uvicorn serving ``app`` in a thread, on a socket bound here to a free port."""
+
+    def __init__(self, app: Any) -> None:
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.socket.bind(("127.0.0.1", 0))
+        self.url = f"http://127.0.0.1:{self.socket.getsockname()[1]}"
+        config = uvicorn.Config(app, log_level="warning")
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(
+            target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True
+        )
+
+    def __enter__(self) -> _Thread:
+        self.thread.start()
+        deadline = time.monotonic() + STARTUP_TIMEOUT
+        while not self.server.started:
+            assert self.thread.is_alive() and time.monotonic() < deadline, "no server"
+            time.sleep(0.01)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.server.should_exit = True
+        self.thread.join(REQUEST_TIMEOUT)
+        self.socket.close()
+
+
+@pytest.fixture(scope="module")
+def robot() -> spm.SPMRobot:
+    """The prototype, built in this process: the independent truth."""
+    return spm.build_robot()
+
+
+@pytest.fixture(scope="module")
+def backend() -> KinematicBackend:
+    return KinematicBackend()
+
+
+@pytest.fixture(scope="module")
+def url(backend: KinematicBackend) -> Iterator[str]:
+    with _Thread(create_app(backend)) as running:
+        yield running.url
+
+
+@pytest.fixture(scope="module")
+def token_url(backend: KinematicBackend) -> Iterator[str]:
+    with _Thread(create_app(backend, token=TOKEN)) as running:
+        yield running.url
+
+
+@pytest.fixture()
+def client(url: str) -> Iterator[httpx.Client]:
+    with httpx.Client(base_url=url, timeout=REQUEST_TIMEOUT) as session:
+        yield session
+        session.put("/joints", json={"theta_deg": [0, 0, 0]})  # back home
+
+
+def _no_nan(constant: str) -> Any:
+    raise AssertionError(f"the server sent {constant}, which is not JSON")
+
+
+def _json(response: Any) -> Any:
+    """The body, refusing NaN and Infinity."""
+    return json.loads(response.text, parse_constant=_no_nan)
+
+
+def _theta_of(state: dict[str, Any]) -> np.ndarray:
+    return np.radians(np.asarray(state["theta_deg"], dtype=float))
+
+
+# ----------------------------------------------------------------------- state, joints
+def test_state_at_home(client: httpx.Client) -> None:
+    response = client.get("/state")
+    assert response.status_code == 200
+    state = _json(response)
+    assert set(state) >= STATE_KEYS
+    np.testing.assert_allclose(state["theta_deg"], [0, 0, 0], atol=TOL["angles_deg"])
+    np.testing.assert_allclose(state["R"], np.eye(3), atol=TOL["same_numbers"])
+    np.testing.assert_allclose(state["quaternion_wxyz"], [1, 0, 0, 0], atol=TOL["same_numbers"])
+    np.testing.assert_allclose(state["rpy_deg"], [0, 0, 0], atol=1e-10)
+    assert state["reachable"] is True
+    assert state["pairs"] == []
+    assert state["assembly"] == "+++/-"
+    assert state["backend"] == "kinematic"
+    assert 0 < state["min_distance_m"] < 0.002  # the nested drive tubes, 1 mm apart
+    assert abs(state["time"] - time.time()) < 60
+
+
+def test_safe_goal_moves(client: httpx.Client, robot: spm.SPMRobot) -> None:
+    response = client.put("/joints", json={"theta_deg": SAFE_DEG})
+    assert response.status_code == 200, response.text
+    moved = _json(response)
+    joints = _json(client.get("/joints"))
+    state = _json(client.get("/state"))
+    np.testing.assert_allclose(joints["theta_deg"], SAFE_DEG, atol=TOL["angles_deg"])
+    np.testing.assert_allclose(state["theta_deg"], SAFE_DEG, atol=TOL["angles_deg"])
+    fk = spm.forward_kinematics(np.radians(SAFE_DEG))
+    jac = spm.jacobian(np.radians(SAFE_DEG))
+    for answer in (moved, state):
+        np.testing.assert_allclose(answer["R"], fk.R, atol=TOL["same_numbers"])
+        np.testing.assert_allclose(
+            answer["quaternion_wxyz"], quaternion_from_matrix(fk.R), atol=TOL["same_numbers"]
+        )
+        np.testing.assert_allclose(
+            answer["rpy_deg"], np.degrees(rpy_from_matrix(fk.R)), atol=TOL["angles_deg"]
+        )
+        np.testing.assert_allclose(answer["dexterity"], jac.dexterity, atol=TOL["same_numbers"])
+        assert answer["pairs"] == [list(p) for p in robot.collisions(np.radians(SAFE_DEG))]
+
+
+def test_unsafe_goal_is_refused_and_nothing_moves(client: httpx.Client) -> None:
+    client.put("/joints", json={"theta_deg": SAFE_DEG})
+    before = _json(client.get("/state"))
+    response = client.put("/joints", json={"theta_deg": STUDY_COLLISION_DEG})
+    assert response.status_code == 409
+    body = _json(response)
+    failed = {check["check"]: check["reason"] for check in body["failed"]}
+    assert "collision" in failed and "reachable" in failed
+    for a, b in STUDY_COLLISION_PAIRS:
+        assert f"{a}-{b}" in failed["collision"]
+    assert body["verdict"]["safe"] is False
+    assert "nothing moved" in body["detail"]
+    after = _json(client.get("/state"))
+    before.pop("time"), after.pop("time")
+    assert after == before
+
+
+def test_check_reports_the_study_collision(client: httpx.Client) -> None:
+    before = _json(client.get("/joints"))
+    response = client.post("/check", json={"theta_deg": STUDY_COLLISION_DEG})
+    assert response.status_code == 200
+    verdict = _json(response)
+    assert verdict["safe"] is False
+    assert {tuple(pair) for pair in verdict["pairs"]} == STUDY_COLLISION_PAIRS
+    checks = {check["check"]: check for check in verdict["checks"]}
+    assert checks["collision"]["passed"] is False
+    assert checks["reachable"]["passed"] is False
+    assert checks["joint_limits"]["passed"] is True
+    assert verdict["reasons"] and verdict["min_distance_m"] < 0
+    assert _json(client.get("/joints")) == before  # checking moves nothing
+
+
+@pytest.mark.parametrize(
+    "theta_deg",
+    [SAFE_DEG, STUDY_COLLISION_DEG, [0, 0, 0], [0, 60, 120], [0, 70, 140], [10, 20, 30]],
+)
+def test_check_agrees_with_the_guard(
+    client: httpx.Client, robot: spm.SPMRobot, theta_deg: list[float]
+) -> None:
+    verdict = _json(client.post("/check", json={"theta_deg": theta_deg}))
+    truth = SafetyGuard(robot).check(np.radians(theta_deg))
+    assert verdict["safe"] == truth.safe
+    assert verdict["reachable"] == truth.reachable
+    assert set(truth.reasons) <= set(verdict["reasons"])
+    if truth.reachable:
+        assert verdict["singularity_margin"] == pytest.approx(truth.singularity_margin, abs=1e-12)
+    else:
+        assert verdict["singularity_margin"] is None
+
+
+def test_check_an_orientation(client: httpx.Client) -> None:
+    for body in ({"rpy_deg": [10, -5, 30]}, {"quaternion_wxyz": [0.99, 0.05, 0.02, 0.1]}):
+        verdict = _json(client.post("/check", json=body))
+        assert verdict["safe"] is True, verdict
+        assert all(check["passed"] for check in verdict["checks"])
+
+
+# ------------------------------------------------------------------------ orientation
+@pytest.mark.parametrize(
+    "body",
+    [{"rpy_deg": [10.0, -5.0, 30.0]}, {"quaternion_wxyz": [0.95, 0.1, -0.05, 0.28]}],
+    ids=["rpy", "quaternion"],
+)
+def test_orientation_round_trip(client: httpx.Client, body: dict[str, list[float]]) -> None:
+    response = client.put("/orientation", json=body)
+    assert response.status_code == 200, response.text
+    state = _json(response)
+    if "rpy_deg" in body:
+        asked = matrix_from_rpy(np.radians(body["rpy_deg"]))
+    else:
+        asked = matrix_from_quaternion(body["quaternion_wxyz"])
+    reached = spm.forward_kinematics(_theta_of(state)).R
+    np.testing.assert_allclose(reached, asked, atol=TOL["orientation"])
+    np.testing.assert_allclose(state["R"], asked, atol=TOL["orientation"])
+    ik = spm.inverse_kinematics(asked)
+    np.testing.assert_allclose(_theta_of(state), ik.theta, atol=TOL["orientation"])
+
+
+def test_unreachable_orientation_is_422(client: httpx.Client) -> None:
+    before = _json(client.get("/joints"))
+    response = client.put("/orientation", json={"rpy_deg": [80, 5, 30]})
+    assert response.status_code == 422
+    body = _json(response)
+    assert body["error"] == "UnreachableError" and "cannot close" in body["detail"]
+    assert _json(client.get("/joints")) == before
+
+
+# ------------------------------------------------------------------------- collisions
+def test_collisions_match_the_robot_in_process(client: httpx.Client, robot: spm.SPMRobot) -> None:
+    theta_deg = [-30.0, 30.0, 0.0]
+    assert client.put("/joints", json={"theta_deg": theta_deg}).status_code == 200
+    answer = _json(client.get("/collisions"))
+    theta = np.radians(theta_deg)
+    colliding = set(robot.collisions(theta))
+    distances = robot.distances(theta)
+    assert [tuple(entry["pair"]) for entry in answer["pairs"]] == list(LINK_PAIRS)
+    for entry in answer["pairs"]:
+        pair = tuple(entry["pair"])
+        assert entry["colliding"] == (pair in colliding)
+        assert entry["distance_m"] == pytest.approx(distances[pair], abs=TOL["same_numbers"])
+    assert answer["collision"] == bool(colliding)
+    np.testing.assert_allclose(answer["theta_deg"], theta_deg, atol=TOL["angles_deg"])
+
+
+def test_stop_answers_the_state(client: httpx.Client) -> None:
+    client.put("/joints", json={"theta_deg": SAFE_DEG})
+    response = client.post("/stop")
+    assert response.status_code == 200
+    state = _json(response)
+    assert state["moving"] is False
+    np.testing.assert_allclose(state["theta_deg"], SAFE_DEG, atol=TOL["angles_deg"])
+
+
+def test_concurrent_requests_stay_consistent(url: str) -> None:
+    goals = [[0, 0, 0], SAFE_DEG, [10, 20, 30], [-20, 5, 15]]
+    answers: list[dict[str, Any]] = []
+    errors: list[BaseException] = []
+
+    def work(goal: list[float]) -> None:
+        try:
+            with httpx.Client(base_url=url, timeout=REQUEST_TIMEOUT) as session:
+                for _ in range(3):
+                    answers.append(_json(session.put("/joints", json={"theta_deg": goal})))
+                    answers.append(_json(session.get("/state")))
+        except BaseException as exc:  # reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=work, args=(goal,)) for goal in goals]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(STARTUP_TIMEOUT)
+    assert not errors
+    assert len(answers) == 24
+    for state in answers:  # every state is whole: its R belongs to its theta
+        fk = spm.forward_kinematics(_theta_of(state))
+        np.testing.assert_allclose(state["R"], fk.R, atol=TOL["same_numbers"])
+    httpx.put(f"{url}/joints", json={"theta_deg": [0, 0, 0]}, timeout=REQUEST_TIMEOUT)
+
+
+# --------------------------------------------------------------------- malformed bodies
+MALFORMED = {
+    "nan": ("/joints", '{"theta_deg": [NaN, 0, 0]}', "theta_deg"),
+    "infinity": ("/joints", '{"theta_deg": [0, Infinity, 0]}', "theta_deg"),
+    "minus_infinity": ("/check", '{"theta_deg": [0, 0, -Infinity]}', "theta_deg"),
+    "huge_number": ("/joints", '{"theta_deg": [1e999, 0, 0]}', "theta_deg"),
+    "two_values": ("/joints", '{"theta_deg": [1, 2]}', "theta_deg"),
+    "four_values": ("/joints", '{"theta_deg": [1, 2, 3, 4]}', "theta_deg"),
+    "string": ("/joints", '{"theta_deg": ["1", 2, 3]}', "theta_deg"),
+    "boolean": ("/joints", '{"theta_deg": [true, 2, 3]}', "theta_deg"),
+    "not_a_list": ("/joints", '{"theta_deg": 5}', "theta_deg"),
+    "unknown_key": ("/joints", '{"theta_deg": [1, 2, 3], "speed": 1}', "speed"),
+    "missing_key": ("/joints", "{}", "theta_deg"),
+    "both_forms": (
+        "/orientation",
+        '{"rpy_deg": [1, 2, 3], "quaternion_wxyz": [1, 0, 0, 0]}',
+        "body",
+    ),
+    "neither_form": ("/orientation", "{}", "body"),
+    "rpy_too_short": ("/orientation", '{"rpy_deg": [1, 2]}', "rpy_deg"),
+    "check_two_forms": ("/check", '{"theta_deg": [1, 2, 3], "rpy_deg": [0, 0, 0]}', "body"),
+    "not_json": ("/joints", "theta_deg = 1, 2, 3", "body"),
+    "empty": ("/joints", "", "body"),
+    "json_list": ("/joints", "[1, 2, 3]", "body"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED))
+def test_malformed_bodies_are_422(client: httpx.Client, case: str) -> None:
+    path, text, field = MALFORMED[case]
+    before = _json(client.get("/joints"))
+    method = "POST" if path == "/check" else "PUT"
+    response = client.request(
+        method, path, content=text.encode(), headers={"content-type": "application/json"}
+    )
+    assert response.status_code == 422, response.text
+    body = _json(response)
+    assert any(field in error["loc"] for error in body["detail"]), body
+    assert all(error["msg"] for error in body["detail"])
+    assert _json(client.get("/joints")) == before
+
+
+def test_library_errors_are_422(client: httpx.Client) -> None:
+    response = client.put("/orientation", json={"quaternion_wxyz": [0, 0, 0, 0]})
+    assert response.status_code == 422
+    assert _json(response) == {"detail": "quaternion must be non-zero", "error": "InputError"}
+    response = client.put("/joints", json={"theta_deg": [1e300, 0, 0]})
+    assert response.status_code == 422
+    assert _json(response)["error"] == "InputError"
+
+
+def test_oversized_bodies_are_413(client: httpx.Client) -> None:
+    big = b'{"theta_deg": [1, 2, 3]' + b" " * 20_000 + b"}"
+    headers = {"content-type": "application/json"}
+    response = client.put("/joints", content=big, headers=headers)
+    assert response.status_code == 413
+    assert "exceeds 16384 bytes" in _json(response)["detail"]
+
+    def chunks() -> Iterator[bytes]:  # no Content-Length: counted as it arrives
+        yield b'{"theta_deg": [1, 2, 3]'
+        for _ in range(40):
+            yield b" " * 1000
+        yield b"}"
+
+    with httpx.Client(base_url=str(client.base_url), timeout=REQUEST_TIMEOUT) as session:
+        response = session.put("/joints", content=chunks(), headers=headers)
+    assert response.status_code == 413
+    just_fits = b'{"theta_deg": [1, 2, 3]' + b" " * 16_000 + b"}"
+    assert client.put("/joints", content=just_fits, headers=headers).status_code == 200
+
+
+# ------------------------------------------------------------------------ description
+def test_openapi_and_docs(client: httpx.Client) -> None:
+    paths = _json(client.get("/openapi.json"))["paths"]
+    for path in ("/state", "/joints", "/orientation", "/collisions", "/check", "/stop"):
+        assert path in paths
+    assert {"get", "put"} <= set(paths["/joints"])
+    docs = client.get("/docs")
+    assert docs.status_code == 200 and "swagger" in docs.text.lower()
+    index = _json(client.get("/"))
+    assert index["backend"] == "kinematic" and index["design"] == "prototype"
+
+
+# ------------------------------------------------------------------------------- auth
+RESOURCES = [
+    ("GET", "/", None),
+    ("GET", "/state", None),
+    ("GET", "/joints", None),
+    ("PUT", "/joints", {"theta_deg": [0, 0, 0]}),
+    ("PUT", "/orientation", {"rpy_deg": [0, 0, 0]}),
+    ("GET", "/collisions", None),
+    ("POST", "/check", {"theta_deg": [0, 0, 0]}),
+    ("POST", "/stop", None),
+]
+
+
+@pytest.mark.parametrize(("method", "path", "body"), RESOURCES)
+def test_every_resource_needs_the_token(
+    token_url: str, method: str, path: str, body: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import spm_pin.remote.app as app_module
+
+    compared: list[tuple[bytes, bytes]] = []
+    real_compare = app_module.secrets.compare_digest
+
+    def spy(a: bytes, b: bytes) -> bool:
+        compared.append((a, b))
+        return real_compare(a, b)
+
+    monkeypatch.setattr(app_module.secrets, "compare_digest", spy)
+    with httpx.Client(base_url=token_url, timeout=REQUEST_TIMEOUT) as session:
+        for headers in ({}, {"Authorization": "Bearer wrong"}, {"Authorization": TOKEN}):
+            response = session.request(method, path, json=body, headers=headers)
+            assert response.status_code == 401, (headers, response.text)
+            assert response.headers["www-authenticate"] == "Bearer"
+        good = {"Authorization": f"Bearer {TOKEN}"}
+        assert session.request(method, path, json=body, headers=good).status_code == 200
+        # A malformed body without the token: 401 before anything reads it.
+        if body is not None:
+            bad = session.request(method, path, content=b"{", headers={})
+            assert bad.status_code == 401
+    assert (b"wrong", TOKEN.encode()) in compared  # the constant-time comparison decided
+    assert (TOKEN.encode(), TOKEN.encode()) in compared
+
+
+def test_docs_stay_open_with_a_token(token_url: str) -> None:
+    assert httpx.get(f"{token_url}/docs", timeout=REQUEST_TIMEOUT).status_code == 200
+    spec = httpx.get(f"{token_url}/openapi.json", timeout=REQUEST_TIMEOUT).json()
+    assert "HTTPBearer" in spec["components"]["securitySchemes"]
+
+
+def test_non_loopback_needs_a_token() -> None:
+    for host in ("127.0.0.1", "localhost", "::1", "127.0.0.2"):
+        assert is_loopback(host)
+        check_binding(host, 8750, None)
+    for host in ("0.0.0.0", "::", "192.168.1.20", "example.org"):
+        assert not is_loopback(host)
+        with pytest.raises(InputError, match="without a token"):
+            check_binding(host, 8750, None)
+        check_binding(host, 8750, TOKEN)
+    # Refused before anything is built or bound.
+    with pytest.raises(InputError, match="SPM_TOKEN"):
+        serve(host="0.0.0.0", port=8750)
+    with pytest.raises(InputError, match="without a token"):
+        BackgroundServer(host="0.0.0.0")
+    with pytest.raises(InputError, match="port"):
+        check_binding("127.0.0.1", 70000, None)
+
+
+def test_load_token(tmp_path: Path) -> None:
+    path = tmp_path / "token"
+    path.write_text(TOKEN + "\n")
+    assert load_token(path, environ={}) == TOKEN
+    assert load_token(None, environ={"SPM_TOKEN": " abc "}) == "abc"
+    assert load_token(path, environ={"SPM_TOKEN": "other"}) == TOKEN  # the file first
+    assert load_token(None, environ={}) is None
+    path.write_text("\n")
+    with pytest.raises(InputError, match="empty"):
+        load_token(path, environ={})
+    with pytest.raises(InputError, match="printable ASCII"):
+        load_token(None, environ={"SPM_TOKEN": "two words"})
+    with pytest.raises(InputError, match="empty"):
+        create_app(KinematicBackend.__new__(KinematicBackend), token="")
+
+
+# -------------------------------------------------------------------------------- CLI
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _environment() -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("SPM_TOKEN", None)
+    return env
+
+
+@contextlib.contextmanager
+def _spm_serve(*args: str) -> Iterator[tuple[str, subprocess.Popen[str]]]:
+    port = _free_port()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spm_pin", "serve", "--port", str(port), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_environment(),
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + STARTUP_TIMEOUT
+        while True:
+            assert process.poll() is None, process.communicate(timeout=REQUEST_TIMEOUT)
+            assert time.monotonic() < deadline, "spm serve did not answer"
+            try:
+                httpx.get(f"{url}/state", timeout=1.0)
+                break
+            except httpx.TransportError:
+                time.sleep(0.1)
+        yield url, process
+    finally:
+        process.terminate()
+        try:
+            process.communicate(timeout=REQUEST_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.communicate()
+
+
+def test_spm_serve_as_a_newcomer_starts_it() -> None:
+    with _spm_serve() as (url, process):
+        with httpx.Client(base_url=url, timeout=REQUEST_TIMEOUT) as session:
+            state = _json(session.get("/state"))
+            assert state["backend"] == "kinematic"
+            moved = session.put("/joints", json={"theta_deg": SAFE_DEG})
+            assert moved.status_code == 200
+            np.testing.assert_allclose(
+                _json(session.get("/joints"))["theta_deg"], SAFE_DEG, atol=TOL["angles_deg"]
+            )
+            refused = session.put("/joints", json={"theta_deg": STUDY_COLLISION_DEG})
+            assert refused.status_code == 409
+            assert "links collide" in _json(refused)["detail"]
+        process.terminate()
+        _, err = process.communicate(timeout=REQUEST_TIMEOUT)
+    assert process.returncode == 0, err
+    assert "kinematic twin of design 'prototype'" in err
+
+
+def test_spm_serve_refuses_other_hosts_without_a_token() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "spm_pin", "serve", "--host", "0.0.0.0", "--port", "8750"],
+        capture_output=True,
+        text=True,
+        timeout=STARTUP_TIMEOUT,
+        env=_environment(),
+        check=False,
+    )
+    assert result.returncode == 2
+    assert result.stderr.startswith("spm: error: refusing to serve on 0.0.0.0")
+    assert "--token-file" in result.stderr and "SPM_TOKEN" in result.stderr
+
+
+def test_spm_serve_without_the_extra_names_it() -> None:
+    code = (
+        "import sys; sys.modules['fastapi'] = None\n"
+        "from spm_pin.cli import main\n"
+        "sys.exit(main(['serve']))\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=STARTUP_TIMEOUT,
+        env=_environment(),
+        check=False,
+    )
+    assert result.returncode == 2
+    assert 'pip install "spm-pin[remote]"' in result.stderr
+
+
+def test_importing_spm_pin_loads_no_web_framework() -> None:
+    code = (
+        "import sys, spm_pin, spm_pin.cli\n"
+        "spm_pin.cli.build_parser()\n"
+        "loaded = [m for m in sys.modules if m.split('.')[0] in "
+        "('fastapi', 'uvicorn', 'pydantic', 'starlette', 'httpx', 'spm_pin.remote')]\n"
+        "assert not loaded and 'spm_pin.remote' not in sys.modules, loaded\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=STARTUP_TIMEOUT
+    )
+    assert result.returncode == 0, result.stderr
+
+
+def test_json_has_no_nan(client: httpx.Client) -> None:
+    verdict = _json(client.post("/check", json={"theta_deg": STUDY_COLLISION_DEG}))
+    assert verdict["dexterity"] is None and verdict["singularity_margin"] is None
+    assert not any(
+        isinstance(v, float) and not math.isfinite(v) for v in verdict.values() if v is not None
+    )
