@@ -27,6 +27,8 @@ Commands::
     spm workspace [--step DEG | --samples N [--seed S]] [--range LOW HIGH] [--margin-mm MM]
                 [--min-dexterity X] [--no-clearance] [--workers N] [--out DIR]
                 [--no-plots] [--quiet] [--json] [--design NAME|FILE]
+    spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic] [--design NAME|FILE]
+              [--token-file FILE]
 
 Every bad argument and every :class:`~spm_pin.SPMError` raised by the library is
 reported as one line ``spm: error: ...`` on stderr with exit status 2 (so is an
@@ -41,7 +43,7 @@ This package holds the parser and :func:`main`; each command group is a module o
 own, beside the options they share (``_options``): ``kinematics`` (fk, ik, design),
 ``study`` (demo), ``model`` (export), ``view`` (show, animate), ``calibration``
 (calibrate, plan-poses, synth-readings), ``dynamics`` (torques), ``collision``
-(collide), ``workspace`` and ``servo``.
+(collide), ``workspace``, ``remote`` (serve) and ``servo``.
 """
 
 from __future__ import annotations
@@ -55,7 +57,17 @@ from collections.abc import Sequence
 from .._records import fk_all_record
 from .._version import __version__
 from ..errors import SPMError
-from . import calibration, collision, dynamics, kinematics, model, study, view, workspace
+from . import (
+    calibration,
+    collision,
+    dynamics,
+    kinematics,
+    model,
+    remote,
+    study,
+    view,
+    workspace,
+)
 from ._options import EXIT_OVER_LIMITS, EXIT_USAGE
 from ._options import Parser as _Parser
 from ._options import UsageError as _UsageError
@@ -96,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     dynamics.add_parser(commands)  # torques
     collision.add_parser(commands)  # collide
     workspace.add_parser(commands)  # workspace
+    remote.add_parser(commands)  # serve
 
     # spm servo ...: defined with the hardware layer (its SDK is imported only when run).
     from .servo import add_servo_parser
