@@ -4,11 +4,13 @@
 Command::
 
     spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic] [--design NAME|FILE]
-              [--token-file FILE]
+              [--token-file FILE] [--deadline SECONDS]
 
 Serves until Ctrl-C (or SIGTERM), then exits with status 0. Binding an address other
 than loopback needs a bearer token (``--token-file`` or the environment variable
 ``SPM_TOKEN``); without one the command exits with status 2 before binding anything.
+``--deadline``: seconds the streaming client that holds the lease (``WS /stream``)
+may stay silent before the lease ends and the twin stops (default 0.5).
 """
 
 from __future__ import annotations
@@ -39,6 +41,16 @@ def _port(text: str) -> int:
     return value
 
 
+def _deadline(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not 0 < value <= 3600:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"the deadline lies in (0, 3600] s, got {text}")
+    return value
+
+
 def _run_serve(args: argparse.Namespace) -> int:
     try:  # imported here: FastAPI, uvicorn and pydantic are the remote extra
         from ..remote import KinematicBackend, check_binding, load_token, serve
@@ -66,7 +78,7 @@ def _run_serve(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGTERM, interrupt)
     try:
         with contextlib.suppress(KeyboardInterrupt):
-            serve(backend, host=args.host, port=args.port, token=token)
+            serve(backend, host=args.host, port=args.port, token=token, deadline=args.deadline)
     finally:
         signal.signal(signal.SIGTERM, previous)
     return 0
@@ -100,5 +112,13 @@ def add_parser(commands: Any) -> None:
         metavar="FILE",
         help="file holding the bearer token every request must carry (default: the "
         "environment variable SPM_TOKEN; without either, only loopback is served)",
+    )
+    serve.add_argument(
+        "--deadline",
+        type=_deadline,
+        default=0.5,
+        metavar="SECONDS",
+        help="seconds the streaming client that controls the twin (WS /stream) may stay "
+        "silent before its lease ends and the twin stops (default: 0.5)",
     )
     serve.set_defaults(run=_run_serve)

@@ -13,6 +13,9 @@ uvicorn and pydantic); ``import spm_pin`` never imports this package.
 * :func:`serve`: serve it with uvicorn (127.0.0.1:8750 by default; other addresses
   only with a bearer token, :func:`load_token`); :class:`BackgroundServer`: the same
   in a thread of this process.
+* ``WS /stream`` (:mod:`spm_pin.remote.stream`): the state pushed at a requested
+  rate, goals streamed back by the one client that holds the :class:`Lease`; the
+  twin stops when that client goes quiet for the deadline or disconnects.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
 from .app import DEFAULT_MAX_BODY_BYTES, OPEN_PATHS, create_app
 from .backend import (
     CHECK_NAMES,
+    RATE_CHECK_NAMES,
     CheckOutcome,
     CollisionState,
     GoalRefusedError,
@@ -49,17 +53,23 @@ from .server import (
     load_token,
     serve,
 )
+from .stream import DEFAULT_DEADLINE, DEFAULT_RATE, MAX_RATE, MIN_RATE, Lease, LeaseHeldError
 
 #: The command that installs what this package needs.
 INSTALL_REMOTE = 'pip install "spm-pin[remote]"'
 
 __all__ = [
     "CHECK_NAMES",
+    "DEFAULT_DEADLINE",
     "DEFAULT_HOST",
     "DEFAULT_MAX_BODY_BYTES",
     "DEFAULT_PORT",
+    "DEFAULT_RATE",
     "INSTALL_REMOTE",
+    "MAX_RATE",
+    "MIN_RATE",
     "OPEN_PATHS",
+    "RATE_CHECK_NAMES",
     "TOKEN_ENVIRONMENT_VARIABLE",
     "BackgroundServer",
     "CheckOutcome",
@@ -67,6 +77,8 @@ __all__ = [
     "GoalRefusedError",
     "GoalReport",
     "KinematicBackend",
+    "Lease",
+    "LeaseHeldError",
     "PairState",
     "TwinBackend",
     "TwinState",

@@ -12,6 +12,9 @@ Resources (JSON in and out; angles in degrees, the unit in the key)::
     POST /check        {"theta_deg" | "rpy_deg" | "quaternion_wxyz": [...]}: the verdict
                        on a goal, nothing moves
     POST /stop         halt any motion; -> the state
+    GET  /lease        whether a streaming client controls the twin, and the deadline
+    WS   /stream       states pushed at ?rate=HZ; targets, lease, release, stop back
+                       (see :mod:`spm_pin.remote.stream` and docs/remote.md)
 
 Status codes: 200 with the answer; 409 when the guard refuses a goal (the body names
 each failed check and its reason; nothing moved); 422 for a malformed body (NaN,
@@ -23,17 +26,28 @@ received bytes, whatever Content-Length says); 401 with ``WWW-Authenticate: Bear
 for a missing or wrong token when the server has one. The description of the API
 (``/openapi.json``) and its browsable page (``/docs``) stay open: they tell the
 shape of the API, nothing of the robot. No resource reads or writes files.
+
+Streaming (``WS /stream``): one controlling client at a time holds the lease; while
+it does, ``PUT /joints`` and ``PUT /orientation`` answer 409 (reads, ``/check`` and
+``/stop`` stay open to everyone). The lease ends when its holder releases it,
+disconnects or stays silent for ``deadline`` seconds; then the twin stops. The token
+of a streaming client: the ``Authorization: Bearer`` header, or (browsers cannot set
+headers on a WebSocket) a first message ``{"type": "auth", "token": ...}``; a wrong
+one closes the connection with code 1008. Not in the query string, where access
+logs would keep it.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import secrets
 from collections.abc import Awaitable, Callable, MutableMapping
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
-from fastapi import Depends, FastAPI, Request
+from fastapi import Depends, FastAPI, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi.security import HTTPBearer
@@ -41,7 +55,7 @@ from fastapi.security import HTTPBearer
 from .._version import __version__
 from ..errors import SPMError, UnreachableError, UnsafeCommandError
 from ..rotations import matrix_from_quaternion, matrix_from_rpy
-from .backend import GoalRefusedError, KinematicBackend, TwinBackend
+from .backend import GoalRefusedError, KinematicBackend, TwinBackend, TwinState
 from .models import (
     CheckRequest,
     CheckResponse,
@@ -56,6 +70,7 @@ from .models import (
     collisions_response,
     state_response,
 )
+from .stream import DEFAULT_DEADLINE, Lease, LeaseHeldError, StateCache, stream_session
 
 __all__ = ["DEFAULT_MAX_BODY_BYTES", "OPEN_PATHS", "create_app"]
 
@@ -99,17 +114,29 @@ class _Guarded:
         self._token = None if token is None else token.encode()
         self.max_body_bytes = max_body_bytes
 
-    def _authorized(self, scope: Scope) -> bool:
-        if self._token is None or scope.get("path") in OPEN_PATHS:
-            return True
+    def _given(self, scope: Scope) -> bytes | None:
+        """The bearer token of the request's headers, if any."""
         for name, value in scope.get("headers", ()):
             if name.lower() == b"authorization":
                 scheme, _, given = bytes(value).partition(b" ")
                 if scheme.lower() == b"bearer":
-                    return secrets.compare_digest(given.strip(), self._token)
-        return False
+                    return given.strip()
+        return None
+
+    def _authorized(self, scope: Scope) -> bool:
+        if self._token is None or scope.get("path") in OPEN_PATHS:
+            return True
+        given = self._given(scope)
+        return given is not None and secrets.compare_digest(given, self._token)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "websocket":
+            # The handler closes the connection (1008) without a valid token: from
+            # the header, checked here, or from its first message.
+            scope["spm.token_given"] = self._given(scope) is not None
+            scope["spm.authorized"] = self._authorized(scope)
+            await self.app(scope, receive, send)
+            return
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
@@ -202,6 +229,7 @@ def create_app(
     *,
     token: str | None = None,
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
+    deadline: float = DEFAULT_DEADLINE,
 ) -> FastAPI:
     """The HTTP API of a twin, as an ASGI application (serve it with uvicorn).
 
@@ -210,7 +238,10 @@ def create_app(
             the prototype).
         token: With a token, every resource needs ``Authorization: Bearer TOKEN``
             (compared in constant time); without one, none does.
-        max_body_bytes: Largest request body accepted [bytes] (larger: 413).
+        max_body_bytes: Largest request body accepted [bytes] (larger: 413); also
+            the largest message of a streaming client.
+        deadline: Seconds the streaming client holding the lease may stay silent
+            before the lease ends and the twin stops [s] (> 0).
 
     Returns:
         The FastAPI application.
@@ -231,6 +262,12 @@ def create_app(
             argument="max_body_bytes",
             value=max_body_bytes,
         )
+    if not isinstance(deadline, int | float) or not 0 < deadline < math.inf:
+        raise InputError(
+            f"deadline must be a positive number of seconds, got {deadline!r}",
+            argument="deadline",
+            value=deadline,
+        )
     twin: TwinBackend = backend if backend is not None else KinematicBackend()
     # Declares the bearer scheme in /openapi.json (the check itself is _Guarded's).
     security = [Depends(HTTPBearer(auto_error=False))] if token is not None else []
@@ -244,11 +281,32 @@ def create_app(
         redoc_url=None,
     )
     app.state.backend = twin
+    lease = Lease(float(deadline))
+    app.state.lease = lease
+    hub = SimpleNamespace(
+        twin=twin,
+        lease=lease,
+        token=None if token is None else token.encode(),
+        max_message_bytes=max_body_bytes,
+        states=None,  # made in the event loop, at the first connection
+    )
+    app.state.stream = hub
+
+    def changed(state: TwinState) -> StateResponse:
+        """The answer of an HTTP write; pushed states follow it at once."""
+        if hub.states is not None:
+            hub.states.invalidate()
+        return state_response(state)
+
     app.add_middleware(_Guarded, token=token, max_body_bytes=max_body_bytes)
 
     @app.exception_handler(GoalRefusedError)
     async def _on_refused(request: Request, exc: GoalRefusedError) -> JSONResponse:
         return _refused(exc)
+
+    @app.exception_handler(LeaseHeldError)
+    async def _on_lease_held(request: Request, exc: LeaseHeldError) -> JSONResponse:
+        return _error(409, exc)
 
     @app.exception_handler(UnsafeCommandError)
     async def _on_unsafe(request: Request, exc: UnsafeCommandError) -> JSONResponse:
@@ -267,7 +325,10 @@ def create_app(
         return _validation_errors(exc)
 
     refused: dict[int | str, dict[str, Any]] = {
-        409: {"model": GoalRefusedResponse, "description": "The guard refused the goal."},
+        409: {
+            "model": GoalRefusedResponse,
+            "description": "The guard refused the goal, or a streaming client holds the lease.",
+        },
         422: {"description": "Malformed body, or an error of the library."},
     }
 
@@ -278,7 +339,16 @@ def create_app(
             "version": __version__,
             "design": twin.design.name,
             "backend": twin.name,
-            "resources": ["/state", "/joints", "/orientation", "/collisions", "/check", "/stop"],
+            "resources": [
+                "/state",
+                "/joints",
+                "/orientation",
+                "/collisions",
+                "/check",
+                "/stop",
+                "/lease",
+                "/stream",
+            ],
             "docs": "/docs",
         }
 
@@ -298,7 +368,8 @@ def create_app(
         summary="Move to input angles (through the guard)",
     )
     def put_joints(goal: JointsGoal) -> StateResponse:
-        return state_response(twin.move(np.radians(goal.theta_deg)))
+        with lease.writing():
+            return changed(twin.move(np.radians(goal.theta_deg)))
 
     @app.put(
         "/orientation",
@@ -308,7 +379,8 @@ def create_app(
     )
     def put_orientation(goal: OrientationGoal) -> StateResponse:
         theta = twin.solve(_rotation(goal.rpy_deg, goal.quaternion_wxyz))
-        return state_response(twin.move(theta))
+        with lease.writing():
+            return changed(twin.move(theta))
 
     @app.get("/collisions", response_model=CollisionsResponse, summary="Every link pair")
     def get_collisions() -> CollisionsResponse:
@@ -324,6 +396,16 @@ def create_app(
 
     @app.post("/stop", response_model=StateResponse, summary="Halt any motion")
     def post_stop() -> StateResponse:
-        return state_response(twin.stop())
+        return changed(twin.stop("POST /stop"))
+
+    @app.get("/lease", summary="Whether a streaming client controls the twin")
+    def get_lease() -> dict[str, Any]:
+        return {"held": lease.held, "deadline_s": lease.deadline, "expired": lease.expired}
+
+    @app.websocket("/stream")
+    async def stream(websocket: WebSocket) -> None:
+        if hub.states is None:
+            hub.states = StateCache(twin)
+        await stream_session(websocket, hub)
 
     return app

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CHECK_NAMES",
+    "RATE_CHECK_NAMES",
     "CheckOutcome",
     "CollisionState",
     "GoalRefusedError",
@@ -58,8 +59,14 @@ LinkPair = tuple[str, str]
 #: The checks a goal passes, in the order they are reported.
 CHECK_NAMES = ("joint_limits", "reachable", "singularity", "dexterity", "collision")
 
+#: The checks of a streamed goal against the goals commanded before it (reported
+#: only when they were evaluated, i.e. with a period).
+RATE_CHECK_NAMES = ("speed", "acceleration")
+
 #: Words of the guard's reasons -> the check they belong to (first match wins).
 _REASON_WORDS = (
+    ("joint speed", "speed"),
+    ("joint acceleration", "acceleration"),
     ("joint limits", "joint_limits"),
     ("not finite", "joint_limits"),
     ("unreachable", "reachable"),
@@ -197,6 +204,7 @@ class TwinState:
         backend: The backend's name (``"kinematic"``).
         time: Server time when the state was read [s since the epoch].
         moving: A motion is in progress (never for the kinematic twin).
+        stops: How many times the twin was stopped (:meth:`TwinBackend.stop`).
     """
 
     theta: FloatArray
@@ -210,6 +218,7 @@ class TwinState:
     backend: str
     time: float
     moving: bool = False
+    stops: int = 0
 
 
 class TwinBackend(Protocol):
@@ -235,9 +244,18 @@ class TwinBackend(Protocol):
         """The verdict on a goal [rad], without moving."""
         ...
 
-    def move(self, theta: npt.ArrayLike) -> TwinState:
+    def move(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+    ) -> TwinState:
         """Move to a goal [rad] if it is safe; raise GoalRefusedError (nothing
-        moves) if not."""
+        moves) if not. With ``previous`` and ``period`` (a stream of goals), the
+        guard's speed check applies too, with ``before_previous`` its acceleration
+        check."""
         ...
 
     def solve(self, R: npt.ArrayLike) -> FloatArray:
@@ -249,8 +267,9 @@ class TwinBackend(Protocol):
         """Every checked link pair at the current state."""
         ...
 
-    def stop(self) -> TwinState:
-        """Halt any motion in progress; return the state."""
+    def stop(self, reason: str | None = None) -> TwinState:
+        """Halt any motion in progress (the servos' torque goes off); return the
+        state. ``reason`` says why (kept for the log)."""
         ...
 
 
@@ -320,15 +339,25 @@ class KinematicBackend:
         self._report(start).require()
         self._theta: FloatArray = start
         self._state = self._compute_state(start)
+        self.stops = 0
+        self.last_stop_reason: str | None = None
 
     def __repr__(self) -> str:
         return f"KinematicBackend(design={self.design.name!r})"
 
     # ---------------------------------------------------------------- private
-    def _report(self, theta: FloatArray) -> GoalReport:
+    def _report(
+        self,
+        theta: FloatArray,
+        previous: FloatArray | None = None,
+        before_previous: FloatArray | None = None,
+        period: float | None = None,
+    ) -> GoalReport:
         from ..collision import check_input
 
-        verdict: Verdict = self.guard.check(theta)
+        verdict: Verdict = self.guard.check(
+            theta, previous=previous, before_previous=before_previous, period=period
+        )
         limits = self.guard.limits
         report = check_input(theta, self.robot, margin=limits.collision_margin)
         pairs = list(verdict.collisions)
@@ -340,11 +369,16 @@ class KinematicBackend:
             reasons.append(
                 f"links collide (margin {limits.collision_margin * 1e3:g} mm, {where}): {names}"
             )
-        grouped: dict[str, list[str]] = {name: [] for name in (*CHECK_NAMES, "other")}
+        checked: tuple[str, ...] = CHECK_NAMES
+        if previous is not None and period is not None:
+            checked += RATE_CHECK_NAMES[: 1 if before_previous is None else 2]
+        grouped: dict[str, list[str]] = {
+            name: [] for name in (*checked, *RATE_CHECK_NAMES, "other")
+        }
         for reason in reasons:
             grouped[_check_of(reason)].append(reason)
         checks = []
-        for name in CHECK_NAMES if not grouped["other"] else (*CHECK_NAMES, "other"):
+        for name in checked if not grouped["other"] else (*checked, "other"):
             passed: bool | None = not grouped[name]
             if passed and not verdict.reachable and name in ("singularity", "dexterity"):
                 passed = None
@@ -395,7 +429,7 @@ class KinematicBackend:
     def state(self) -> TwinState:
         """The current state (its ``time`` is now)."""
         with self._lock:
-            return dataclasses.replace(self._state, time=time.time())
+            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
 
     def joints(self) -> FloatArray:
         """The current input angles [rad], (3,)."""
@@ -413,8 +447,23 @@ class KinematicBackend:
         with self._lock:
             return self._report(goal)
 
-    def move(self, theta: npt.ArrayLike) -> TwinState:
+    def move(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+    ) -> TwinState:
         """Jump to a goal [rad], (3,), if it is safe.
+
+        Args:
+            theta: The goal [rad], (3,).
+            previous: For a stream of goals: the goal commanded before [rad]; with
+                ``period`` the guard checks the speed |theta - previous| / period.
+            before_previous: The goal commanded before ``previous`` [rad]; the
+                guard then checks the acceleration too.
+            period: Time since ``previous`` was commanded [s].
 
         Raises:
             InputError: not 3 finite numbers.
@@ -422,11 +471,13 @@ class KinematicBackend:
                 ``report`` says why); the state is unchanged.
         """
         goal = _theta(theta)
+        before = None if before_previous is None else _theta(before_previous)
+        last = None if previous is None else _theta(previous)
         with self._lock:
-            self._report(goal).require()
+            self._report(goal, last, before, period).require()
             self._state = self._compute_state(goal)
             self._theta = goal
-            return dataclasses.replace(self._state, time=time.time())
+            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
 
     def solve(self, R: npt.ArrayLike) -> FloatArray:
         """Input angles [rad] for platform rotation R, home working mode (as ``spm ik``).
@@ -461,6 +512,10 @@ class KinematicBackend:
         )
         return CollisionState(theta, pairs)
 
-    def stop(self) -> TwinState:
-        """Nothing is ever in motion in the kinematic twin: the state."""
+    def stop(self, reason: str | None = None) -> TwinState:
+        """Nothing is ever in motion in the kinematic twin: it holds still, counts
+        the stop (``stops``, ``last_stop_reason``) and answers the state."""
+        with self._lock:
+            self.stops += 1
+            self.last_stop_reason = reason
         return self.state()

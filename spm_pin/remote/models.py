@@ -9,15 +9,16 @@ strings or booleans in place of numbers and lists of the wrong length are refuse
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, TypeAdapter, model_validator
 
 from ..rotations import quaternion_from_matrix, rpy_from_matrix
 from .backend import CHECK_NAMES, CollisionState, GoalReport, TwinState
 
 __all__ = [
+    "CLIENT_MESSAGE",
     "CheckModel",
     "CheckRequest",
     "CheckResponse",
@@ -29,6 +30,9 @@ __all__ = [
     "OrientationGoal",
     "PairModel",
     "StateResponse",
+    "StreamAuth",
+    "StreamControl",
+    "StreamTarget",
     "check_response",
     "collisions_response",
     "finite_or_none",
@@ -90,6 +94,46 @@ class CheckRequest(_Request):
         return self
 
 
+class StreamTarget(_Request):
+    """``WS /stream``: a goal, as input angles or as an orientation (exactly one)."""
+
+    type: Literal["target"]
+    seq: StrictInt | None = Field(default=None, description="Echoed in the answer.")
+    theta_deg: Vector3 | None = Field(default=None, description="Input angles [deg].")
+    rpy_deg: Vector3 | None = Field(default=None, description="Fixed-axis angles [deg].")
+    quaternion_wxyz: Vector4 | None = Field(default=None, description="Quaternion (w, x, y, z).")
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> StreamTarget:
+        names = ("theta_deg", "rpy_deg", "quaternion_wxyz")
+        given = [name for name in names if getattr(self, name) is not None]
+        if len(given) != 1:
+            raise ValueError(
+                f"give exactly one of theta_deg, rpy_deg or quaternion_wxyz, got {given or 'none'}"
+            )
+        return self
+
+
+class StreamControl(_Request):
+    """``WS /stream``: ask for the lease, give it back, or stop the twin."""
+
+    type: Literal["lease", "release", "stop", "ping"]
+    seq: StrictInt | None = Field(default=None, description="Echoed in the answer.")
+
+
+class StreamAuth(_Request):
+    """``WS /stream``: the bearer token, as the first message (for browsers)."""
+
+    type: Literal["auth"]
+    token: str
+
+
+#: Parses one text message of a streaming client (JSON) into its model.
+CLIENT_MESSAGE: TypeAdapter[StreamTarget | StreamControl | StreamAuth] = TypeAdapter(
+    Annotated[StreamTarget | StreamControl | StreamAuth, Field(discriminator="type")]
+)
+
+
 class _Response(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -109,6 +153,7 @@ class StateResponse(_Response):
     assembly: str | None = Field(description="Assembly-mode label such as +++/-.")
     backend: str = Field(description="The twin: kinematic.")
     moving: bool = Field(description="A motion is in progress.")
+    stops: int = Field(description="How many times the twin was stopped.")
     time: float = Field(description="Server time [s since the epoch].")
 
 
@@ -200,6 +245,7 @@ def state_response(state: TwinState) -> StateResponse:
         assembly=state.assembly,
         backend=state.backend,
         moving=state.moving,
+        stops=state.stops,
         time=state.time,
     )
 

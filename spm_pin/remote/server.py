@@ -25,6 +25,7 @@ import uvicorn
 from ..errors import InputError, SPMError
 from .app import DEFAULT_MAX_BODY_BYTES, create_app
 from .backend import TwinBackend
+from .stream import DEFAULT_DEADLINE
 
 __all__ = [
     "DEFAULT_HOST",
@@ -129,6 +130,7 @@ def serve(
     port: int = DEFAULT_PORT,
     token: str | None = None,
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
+    deadline: float = DEFAULT_DEADLINE,
     log_level: str = "info",
 ) -> None:
     """Serve a twin over HTTP until interrupted (Ctrl-C or SIGTERM).
@@ -139,13 +141,15 @@ def serve(
         port: Port to bind.
         token: Bearer token every resource then needs.
         max_body_bytes: Largest request body accepted [bytes].
+        deadline: Seconds a streaming client holding the lease may stay silent
+            before the lease ends and the twin stops.
         log_level: uvicorn's log level (``"info"``, ``"warning"``, ...).
 
     Raises:
         InputError: a non-loopback ``host`` without a token (nothing is bound).
     """
     check_binding(host, port, token)
-    app = create_app(backend, token=token, max_body_bytes=max_body_bytes)
+    app = create_app(backend, token=token, max_body_bytes=max_body_bytes, deadline=deadline)
     uvicorn.Server(_config(app, host, port, log_level)).run()
 
 
@@ -163,12 +167,14 @@ class BackgroundServer:
         port: Port to bind; 0 (default) picks a free one.
         token: Bearer token every resource then needs.
         max_body_bytes: Largest request body accepted [bytes].
+        deadline: Seconds a streaming client holding the lease may stay silent.
         timeout: Seconds to wait for the server to start and to stop.
 
     Attributes:
         app: The application served.
         port: The bound port (known once started).
         url: ``http://host:port`` (known once started).
+        ws_url: ``ws://host:port`` (known once started).
     """
 
     def __init__(
@@ -179,13 +185,16 @@ class BackgroundServer:
         port: int = 0,
         token: str | None = None,
         max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
+        deadline: float = DEFAULT_DEADLINE,
         timeout: float = 30.0,
     ) -> None:
         check_binding(host, port, token)
         self.host = host
         self.port = port
         self.timeout = float(timeout)
-        self.app = create_app(backend, token=token, max_body_bytes=max_body_bytes)
+        self.app = create_app(
+            backend, token=token, max_body_bytes=max_body_bytes, deadline=deadline
+        )
         self._server = uvicorn.Server(_config(self.app, host, port, "warning"))
         self._thread: threading.Thread | None = None
         self._socket: socket.socket | None = None
@@ -195,6 +204,11 @@ class BackgroundServer:
         """``http://host:port`` of the running server."""
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}"
+
+    @property
+    def ws_url(self) -> str:
+        """``ws://host:port`` of the running server (``ws_url + "/stream"`` streams)."""
+        return "ws" + self.url[len("http") :]
 
     def start(self) -> BackgroundServer:
         """Bind, start serving in a thread and wait until the server answers."""

@@ -1,0 +1,431 @@
+"""``WS /stream`` of the twin (spm_pin.remote.stream) against a real server.
+
+uvicorn serves the application in a background thread on a free loopback port; the
+``websockets`` package's client opens real WebSocket connections and httpx sends
+real HTTP requests (no test client, no mocks). Deadlines are short (0.3 s) so the
+file runs in seconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fastapi")
+pytest.importorskip("uvicorn")
+httpx = pytest.importorskip("httpx")
+pytest.importorskip("websockets")
+
+from websockets.exceptions import ConnectionClosed  # noqa: E402
+from websockets.sync.client import ClientConnection, connect  # noqa: E402
+
+from spm_pin.remote import BackgroundServer, KinematicBackend  # noqa: E402
+
+#: Tolerances, by what is compared.
+TOL = {
+    "angles_deg": 1e-9,  # angles sent and read back [deg]
+    "rate": 0.25,  # relative error of the count of pushed states
+}
+#: The streaming client's deadline in these tests [s].
+DEADLINE = 0.3
+#: Seconds to wait for one answer of the server.
+ANSWER_TIMEOUT = 10.0
+#: The published study's input with a link collision [deg].
+STUDY_COLLISION_DEG = [60.0, 90.0, 220.0]
+TOKEN = "stream-token-0123456789abcdef"
+STATE_KEYS = {"type", "seq", "dropped", "lease", "theta_deg", "R", "reachable", "pairs", "stops"}
+
+
+# --------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def backend() -> KinematicBackend:
+    return KinematicBackend()
+
+
+@pytest.fixture(scope="module")
+def server(backend: KinematicBackend) -> Iterator[BackgroundServer]:
+    with BackgroundServer(backend, deadline=DEADLINE) as running:
+        yield running
+
+
+@pytest.fixture(scope="module")
+def token_server(backend: KinematicBackend) -> Iterator[BackgroundServer]:
+    with BackgroundServer(backend, token=TOKEN, deadline=DEADLINE) as running:
+        yield running
+
+
+@pytest.fixture()
+def http(server: BackgroundServer) -> Iterator[httpx.Client]:
+    """An HTTP client; the twin starts at home with no lease held."""
+    with httpx.Client(base_url=server.url, timeout=ANSWER_TIMEOUT) as session:
+        _wait_for(lambda: not session.get("/lease").json()["held"])
+        assert session.put("/joints", json={"theta_deg": [0, 0, 0]}).status_code == 200
+        yield session
+
+
+def _wait_for(condition: Any, timeout: float = ANSWER_TIMEOUT) -> None:
+    end = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < end, "condition not met in time"
+        time.sleep(0.01)
+
+
+@contextlib.contextmanager
+def _open(server: BackgroundServer, query: str = "", **kwargs: Any) -> Iterator[ClientConnection]:
+    """A connection whose hello message has been read."""
+    with connect(f"{server.ws_url}/stream{query}", open_timeout=ANSWER_TIMEOUT, **kwargs) as ws:
+        hello = json.loads(ws.recv(timeout=ANSWER_TIMEOUT))
+        assert hello["type"] == "hello", hello
+        yield ws
+
+
+def _answer(ws: ClientConnection) -> dict[str, Any]:
+    """The next message that is not a state."""
+    while True:
+        message: dict[str, Any] = json.loads(ws.recv(timeout=ANSWER_TIMEOUT))
+        if message["type"] != "state":
+            return message
+
+
+def _send(ws: ClientConnection, message: dict[str, Any]) -> dict[str, Any]:
+    ws.send(json.dumps(message))
+    return _answer(ws)
+
+
+def _state(ws: ClientConnection) -> dict[str, Any]:
+    while True:
+        message: dict[str, Any] = json.loads(ws.recv(timeout=ANSWER_TIMEOUT))
+        if message["type"] == "state":
+            return message
+
+
+def _joints(http: httpx.Client) -> list[float]:
+    theta: list[float] = http.get("/joints").json()["theta_deg"]
+    return theta
+
+
+def _closed_with(ws_url: str, **kwargs: Any) -> Any:
+    """The close frame the server sends to a connection opened with ``kwargs``."""
+    with (
+        connect(ws_url, open_timeout=ANSWER_TIMEOUT, **kwargs) as ws,
+        pytest.raises(ConnectionClosed) as closed,
+    ):
+        while True:
+            ws.recv(timeout=ANSWER_TIMEOUT)
+    return closed.value.rcvd
+
+
+# ----------------------------------------------------------------------- states
+def test_states_are_pushed_at_the_requested_rate(server: BackgroundServer) -> None:
+    with _open(server, "?rate=50") as ws:
+        seqs = []
+        start = time.monotonic()
+        while time.monotonic() - start < 1.0:
+            message = json.loads(ws.recv(timeout=ANSWER_TIMEOUT))
+            assert set(message) >= STATE_KEYS, message
+            seqs.append(message["seq"])
+        assert message["lease"] == {"held": False, "yours": False}
+    # Pushes sent plus pushes skipped (none unless this machine is overloaded).
+    assert abs(len(seqs) + message["dropped"] - 50) <= 50 * TOL["rate"], len(seqs)
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # increasing by one
+
+
+def test_a_state_agrees_with_http(server: BackgroundServer, http: httpx.Client) -> None:
+    with _open(server) as ws:
+        pushed = _state(ws)
+    got = http.get("/state").json()
+    for key in ("theta_deg", "R", "reachable", "pairs", "assembly", "backend"):
+        assert pushed[key] == got[key], key
+
+
+@pytest.mark.parametrize("rate", ["0", "0.5", "1001", "fast", "nan", "inf"])
+def test_a_bad_rate_closes_with_1008(server: BackgroundServer, rate: str) -> None:
+    close = _closed_with(f"{server.ws_url}/stream?rate={rate}")
+    assert close.code == 1008 and "rate" in close.reason
+
+
+# ----------------------------------------------------------------------- targets
+def test_a_streamed_safe_target_moves_the_twin(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease", "seq": 1})["held"] is True
+        time.sleep(0.1)  # from rest: 1 deg in 0.1 s is 10 deg/s, 100 deg/s^2
+        ack = _send(ws, {"type": "target", "seq": 2, "theta_deg": [1.0, 0.0, 0.0]})
+        assert ack == {"type": "ack", "seq": 2, "theta_deg": [1.0, 0.0, 0.0]}
+        np.testing.assert_allclose(_joints(http), [1, 0, 0], atol=TOL["angles_deg"])
+        time.sleep(0.1)
+        ack = _send(ws, {"type": "target", "seq": 3, "rpy_deg": [0.0, 0.0, 0.0]})
+        assert ack["type"] == "ack" and ack["seq"] == 3
+        np.testing.assert_allclose(_joints(http), ack["theta_deg"], atol=TOL["angles_deg"])
+        # The pushed state follows.
+        _wait_for(lambda: _state(ws)["theta_deg"] == ack["theta_deg"])
+
+
+def test_an_unsafe_target_is_refused_and_nothing_moves(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    with _open(server) as ws:
+        time.sleep(0.05)
+        answer = _send(ws, {"type": "target", "seq": 7, "theta_deg": STUDY_COLLISION_DEG})
+        assert answer["type"] == "refused" and answer["seq"] == 7
+        failed = {check["check"]: check["reason"] for check in answer["failed"]}
+        assert "collision" in failed and "reachable" in failed
+        assert "proximal_2-proximal_3" in failed["collision"]
+        assert answer["verdict"]["safe"] is False
+    assert _joints(http) == [0.0, 0.0, 0.0]
+
+
+def test_a_too_fast_jump_is_refused_by_the_speed_check(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+        time.sleep(0.1)  # 30 deg in 0.1 s: 300 deg/s > 90 deg/s; the goal itself is safe
+        answer = _send(ws, {"type": "target", "seq": 1, "theta_deg": [30.0, 30.0, 30.0]})
+        assert answer["type"] == "refused", answer
+        failed = {check["check"] for check in answer["failed"]}
+        assert "speed" in failed and failed <= {"speed", "acceleration"}
+        reasons = " ".join(check["reason"] for check in answer["failed"])
+        assert "deg/s > 90.0 deg/s" in reasons
+    assert _joints(http) == [0.0, 0.0, 0.0]
+    assert http.post("/check", json={"theta_deg": [30, 30, 30]}).json()["safe"] is True
+
+
+MALFORMED = {
+    "nan_as_text": '{"type": "target", "seq": 5, "theta_deg": [1, 2, NaN]}',
+    "wrong_length": '{"type": "target", "seq": 5, "theta_deg": [1, 2]}',
+    "unknown_key": '{"type": "target", "seq": 5, "theta_deg": [1, 2, 3], "speed": 1}',
+    "both_forms": '{"type": "target", "seq": 5, "theta_deg": [1, 2, 3], "rpy_deg": [0, 0, 0]}',
+    "string_number": '{"type": "target", "seq": 5, "theta_deg": ["1", 2, 3]}',
+    "unknown_type": '{"type": "jump", "seq": 5}',
+    "not_json": "theta = [1, 2, 3]",
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED))
+def test_malformed_messages_are_422_and_the_connection_stays(
+    server: BackgroundServer, http: httpx.Client, case: str
+) -> None:
+    with _open(server) as ws:
+        ws.send(MALFORMED[case])
+        answer = _answer(ws)
+        assert answer["type"] == "error" and answer["status"] == 422, answer
+        if case != "not_json":
+            assert answer["seq"] == 5
+        assert _send(ws, {"type": "ping", "seq": 6}) == {"type": "pong", "seq": 6}
+    assert _joints(http) == [0.0, 0.0, 0.0]
+
+
+def test_binary_and_oversized_messages_are_answered(server: BackgroundServer) -> None:
+    with _open(server) as ws:
+        ws.send(b'{"type": "ping"}')
+        assert _answer(ws)["status"] == 422
+        ws.send(json.dumps({"type": "ping", "pad": "x" * 20_000}))
+        answer = _answer(ws)
+        assert answer["status"] == 413 and "16384 bytes" in answer["detail"]
+        assert _send(ws, {"type": "ping", "seq": 1})["type"] == "pong"
+
+
+def test_every_target_gets_exactly_one_answer(server: BackgroundServer, http: httpx.Client) -> None:
+    targets: list[str] = []
+    for seq in range(12):
+        if seq % 3 == 0:
+            body: dict[str, Any] = {"theta_deg": STUDY_COLLISION_DEG}
+        elif seq % 3 == 1:
+            body = {"theta_deg": [0.0, 0.0, 0.0]}  # where it is: safe, no motion
+        else:
+            body = {"theta_deg": [1.0, 2.0]}
+        targets.append(json.dumps({"type": "target", "seq": seq, **body}))
+    with _open(server, "?rate=200") as ws:
+        for text in targets:  # a burst: nothing waits for an answer
+            ws.send(text)
+        answers: dict[int, list[str]] = {}
+        while sum(len(kinds) for kinds in answers.values()) < len(targets):
+            answer = _answer(ws)
+            answers.setdefault(answer["seq"], []).append(answer["type"])
+        # A holder busy being answered is not silent: the burst kept the lease.
+        assert http.get("/lease").json()["held"] is True
+        assert _send(ws, {"type": "ping", "seq": 99}) == {"type": "pong", "seq": 99}
+    assert sorted(answers) == list(range(12))
+    expected = {0: ["refused"], 1: ["ack"], 2: ["error"]}
+    assert all(kinds == expected[seq % 3] for seq, kinds in answers.items()), answers
+
+
+# ----------------------------------------------------------------------- the lease
+def test_one_controlling_client_any_number_of_readers(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    with _open(server) as controller, _open(server) as other, _open(server) as reader:
+        assert _send(controller, {"type": "lease", "seq": 1})["held"] is True
+        assert http.get("/lease").json()["held"] is True
+        conflict = _send(other, {"type": "target", "seq": 3, "theta_deg": [1, 0, 0]})
+        assert conflict == {
+            "type": "error",
+            "status": 409,
+            "seq": 3,
+            "detail": "another client holds the lease",
+        }
+        assert _send(other, {"type": "lease", "seq": 4})["status"] == 409
+        refused = http.put("/joints", json={"theta_deg": [1, 0, 0]})
+        assert refused.status_code == 409 and "lease" in refused.json()["detail"]
+        assert http.put("/orientation", json={"rpy_deg": [0, 0, 0]}).status_code == 409
+        assert http.post("/check", json={"theta_deg": [1, 0, 0]}).status_code == 200
+        _wait_for(lambda: _state(reader)["lease"] == {"held": True, "yours": False})
+        _wait_for(lambda: _state(controller)["lease"] == {"held": True, "yours": True})
+        assert _send(controller, {"type": "release", "seq": 2})["released"] is True
+        assert http.get("/lease").json()["held"] is False
+        assert _send(other, {"type": "lease", "seq": 5})["held"] is True
+    assert _joints(http) == [0.0, 0.0, 0.0]
+
+
+def test_a_quiet_controller_loses_the_lease_and_the_twin_stops(
+    server: BackgroundServer, backend: KinematicBackend, http: httpx.Client
+) -> None:
+    stops = http.get("/state").json()["stops"]
+    expired = http.get("/lease").json()["expired"]
+    with _open(server) as ws:
+        start = time.monotonic()  # before the server hears the last message
+        assert _send(ws, {"type": "lease"})["held"] is True
+        ended = _answer(ws)  # the controller stays quiet
+        waited = time.monotonic() - start
+        assert ended == {
+            "type": "lease",
+            "held": False,
+            "reason": f"deadline: nothing received for {DEADLINE:g} s",
+        }
+        assert DEADLINE * 0.95 <= waited <= DEADLINE + 1.0, waited
+        assert http.get("/state").json()["stops"] == stops + 1
+        assert backend.last_stop_reason is not None and "deadline" in backend.last_stop_reason
+        assert http.get("/lease").json() == {
+            "held": False,
+            "deadline_s": DEADLINE,
+            "expired": expired + 1,
+        }
+        assert http.put("/joints", json={"theta_deg": [0, 0, 0]}).status_code == 200
+        # The connection stays open, as a reader; it may take the lease again.
+        assert _send(ws, {"type": "lease"})["held"] is True
+        assert _send(ws, {"type": "release"})["released"] is True
+
+
+def test_messages_within_the_deadline_keep_the_lease(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+        for _ in range(int(3 * DEADLINE / 0.1)):  # three deadlines, a ping every 0.1 s
+            time.sleep(0.1)
+            assert _send(ws, {"type": "ping"})["type"] == "pong"
+        assert http.get("/lease").json()["held"] is True
+        assert _send(ws, {"type": "release"})["released"] is True
+
+
+def test_a_disconnect_frees_the_lease_and_stops_the_twin(
+    server: BackgroundServer, backend: KinematicBackend, http: httpx.Client
+) -> None:
+    stops = backend.stops
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+    _wait_for(lambda: not http.get("/lease").json()["held"], timeout=DEADLINE / 2 + 2.0)
+    assert backend.stops == stops + 1
+    assert backend.last_stop_reason == "the controlling client disconnected"
+
+
+def test_the_stop_message(server: BackgroundServer, backend: KinematicBackend) -> None:
+    stops = backend.stops
+    with _open(server) as ws:
+        assert _send(ws, {"type": "stop", "seq": 3}) == {"type": "stopped", "seq": 3}
+    assert backend.stops == stops + 1
+
+
+# ----------------------------------------------------------------------- the token
+def test_the_stream_needs_the_token(token_server: BackgroundServer) -> None:
+    url = f"{token_server.ws_url}/stream"
+    close = _closed_with(url, additional_headers={"Authorization": "Bearer wrong"})
+    assert close.code == 1008 and "token" in close.reason
+    # Without the header, the first message must be the token.
+    for first in ({"type": "ping"}, {"type": "auth", "token": "wrong"}, {"type": "auth"}):
+        with connect(url, open_timeout=ANSWER_TIMEOUT) as ws:
+            ws.send(json.dumps(first))
+            with pytest.raises(ConnectionClosed) as closed:
+                ws.recv(timeout=ANSWER_TIMEOUT)
+            assert closed.value.rcvd is not None, first
+            assert closed.value.rcvd.code == 1008 and "token" in closed.value.rcvd.reason
+    headers = {"Authorization": f"Bearer {TOKEN}"}
+    with _open(token_server, additional_headers=headers) as ws:
+        assert _state(ws)["type"] == "state"
+    with connect(url, open_timeout=ANSWER_TIMEOUT) as ws:  # as a browser would
+        ws.send(json.dumps({"type": "auth", "token": TOKEN}))
+        assert json.loads(ws.recv(timeout=ANSWER_TIMEOUT))["type"] == "hello"
+        assert _state(ws)["type"] == "state"
+
+
+def test_the_period_is_measured_between_accepted_targets(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    """At 20 Hz, steps of 1 deg (20 deg/s) pass once the stream has ramped up."""
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+        answers = []
+        theta = 0.0
+        for seq in range(4):
+            time.sleep(0.05)
+            theta += 0.25 * (seq + 1)  # 0.25, 0.75, 1.5, 2.5 deg: a gentle ramp
+            answers.append(_send(ws, {"type": "target", "seq": seq, "theta_deg": [theta, 0, 0]}))
+        assert [answer["type"] for answer in answers] == ["ack"] * 4, answers
+        assert math.isclose(_joints(http)[0], theta, abs_tol=TOL["angles_deg"])
+        assert _send(ws, {"type": "release"})["released"] is True
+
+
+# ----------------------------------------------------------------------- spm serve
+def test_spm_serve_takes_a_deadline() -> None:
+    environment = {key: value for key, value in os.environ.items() if key != "SPM_TOKEN"}
+    bad = subprocess.run(
+        [sys.executable, "-m", "spm_pin", "serve", "--deadline", "0"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=environment,
+        check=False,
+    )
+    assert bad.returncode == 2 and "--deadline" in bad.stderr, bad.stderr
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spm_pin", "serve", "--port", str(port), "--deadline", "0.2"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=environment,
+    )
+    try:
+        end = time.monotonic() + 120
+        while True:
+            assert process.poll() is None and time.monotonic() < end, "spm serve did not start"
+            try:
+                ws = connect(f"ws://127.0.0.1:{port}/stream", open_timeout=ANSWER_TIMEOUT)
+                break
+            except OSError:
+                time.sleep(0.1)
+        with ws:
+            hello = json.loads(ws.recv(timeout=ANSWER_TIMEOUT))
+            assert hello["deadline_s"] == 0.2
+            assert _send(ws, {"type": "lease"})["held"] is True
+            ended = _answer(ws)
+            assert ended["held"] is False and "0.2 s" in ended["reason"]
+    finally:
+        process.terminate()
+        process.communicate(timeout=30)
+    assert process.returncode == 0
