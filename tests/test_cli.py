@@ -502,3 +502,23 @@ def test_bad_design_name_lists_the_presets(
     status, out, _ = run(capsys, "fk", "-h")
     assert status == 0
     assert "NAME|FILE" in out and "agile_eye" in out
+
+
+@pytest.mark.parametrize("command", ["show", "animate"])
+def test_view_option_reaches_the_page(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, command: str
+) -> None:
+    pytest.importorskip("meshcat")
+    target = tmp_path / f"{command}.html"
+    where = ["60", "90", "120"] if command == "show" else ["--to", "60", "90", "120"]
+    for view in ("iso", "top"):
+        extra = [] if view == "iso" else ["--view", view]  # iso is the default
+        status, _, err = run(capsys, command, *where, "--html", str(target), *extra)
+        assert status == 0, err
+        text = target.read_text(encoding="utf-8")
+        opened = re.search(r"var view = (.*?);\n", text)
+        assert opened is not None and json.loads(opened.group(1)) == view
+        assert '<ul id="spm-key">' in text
+    status, _, err = run(capsys, command, *where, "--html", str(target), "--view", "diagonal")
+    assert status == 2
+    assert "--view: invalid choice: 'diagonal' (choose from 'iso', 'top', 'front', 'side')" in err

@@ -35,12 +35,20 @@ from spm_pin.model.robot import SPMRobot
 from spm_pin.rotations import matrix_from_quaternion
 from spm_pin.viz import (
     COLLIDING_COLOR,
+    DEFAULT_VIEW,
     LINK_COLORS,
     ROOT,
+    VIEWS,
     MeshcatServer,
     ViewerError,
     Visualizer,
     link_path,
+)
+from spm_pin.viz.views import (
+    CAMERA_FOV,
+    ISO_MIN_FACING,
+    choose_iso_direction,
+    view_direction,
 )
 
 #: Tolerances, by what they compare.
@@ -316,6 +324,139 @@ def test_camera_direction(viz: Visualizer) -> None:
     eye = np.array([x3, -z3, y3])
     expected = [0.0, math.cos(math.radians(30.0)), math.sin(math.radians(30.0))]
     np.testing.assert_allclose(eye / np.linalg.norm(eye), expected, atol=TOL["camera"])
+
+
+def _eye(viz: Visualizer) -> np.ndarray:
+    x3, y3, z3 = viz.scene.property(CAMERA, "position")
+    return np.array([x3, -z3, y3])  # three.js is y-up
+
+
+def _link_points(viz: Visualizer, q: np.ndarray) -> np.ndarray:
+    placements = viz.robot.placements(q)
+    return np.concatenate(
+        [
+            mesh.vertices @ placements[name].rotation.T + placements[name].translation
+            for name, mesh in link_meshes(viz.robot.design).items()
+        ]
+    )
+
+
+def _world_meshes(robot: SPMRobot, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    placements = robot.placements(q)
+    return {
+        name: (
+            mesh.vertices @ placements[name].rotation.T + placements[name].translation,
+            mesh.faces,
+        )
+        for name, mesh in link_meshes(robot.design).items()
+    }
+
+
+@pytest.mark.parametrize("name", list(VIEWS))
+def test_preset_views_look_at_o_from_their_direction_and_frame_the_robot(
+    robot: SPMRobot, name: str
+) -> None:
+    viz = Visualizer(robot, view=name)
+    viz.display(np.radians(DEMO_DEG))
+    viz.set_view(name)
+    assert viz.view == name
+    preset = VIEWS[name]
+    eye = _eye(viz)
+    expected = view_direction(preset.azimuth, preset.elevation)
+    np.testing.assert_allclose(eye / np.linalg.norm(eye), expected, atol=TOL["camera"])
+    # the camera stands where the bounding sphere about O fits its field of view
+    points = _link_points(viz, viz.q)
+    radius = np.linalg.norm(points, axis=1).max()
+    assert np.linalg.norm(eye) * math.sin(CAMERA_FOV / 2) >= radius
+    ndc = _project(viz, points, aspect=4.0 / 3.0)
+    assert np.all(np.abs(ndc) <= 0.8 + TOL["camera"]), f"the robot leaves the {name} view"
+    np.testing.assert_allclose(ndc[:, 1].max() + ndc[:, 1].min(), 0.0, atol=TOL["camera"])
+
+
+def test_default_view_is_iso_and_sees_the_platform_face(robot: SPMRobot) -> None:
+    assert DEFAULT_VIEW == next(iter(VIEWS)) == "iso"
+    viz = Visualizer(robot)
+    assert viz.view == "iso"
+    q = robot.configuration(np.radians(DEMO_DEG))
+    normal = robot.placement(q, "platform").rotation[:, 2]
+    # the iso direction is what the documented rule chooses for the study's input
+    azimuth, elevation = choose_iso_direction(_world_meshes(robot, q), normal)
+    np.testing.assert_allclose(
+        [azimuth, elevation], [VIEWS["iso"].azimuth, VIEWS["iso"].elevation], atol=1e-12
+    )
+    assert normal @ view_direction(azimuth, elevation) >= ISO_MIN_FACING
+    # the old default camera (azimuth -30, elevation 20 deg) saw the platform edge-on
+    old = view_direction(math.radians(-30.0), math.radians(20.0))
+    assert abs(normal @ old) < 0.05
+
+
+def test_animation_is_framed_on_its_samples(viz: Visualizer) -> None:
+    path = np.linspace(0.0, 1.0, 25)[:, None] * np.radians(DEMO_DEG)
+    motion = viz.animate(path)
+    viz.set_view("top")
+    for k in (0, 12, 24):
+        ndc = _project(viz, _link_points(viz, motion.q[k]), aspect=4.0 / 3.0)
+        assert np.all(np.abs(ndc) <= 0.8 + TOL["camera"]), f"sample {k} leaves the view"
+
+
+@pytest.mark.parametrize("view", ["diagonal", "ISO", None, 3])
+def test_bad_view(viz: Visualizer, view: Any) -> None:
+    match = rf"^view must be one of iso, top, front, side, got {re.escape(repr(view))}$"
+    with pytest.raises(spm.InputError, match=match) as info:
+        viz.set_view(view)
+    assert info.value.argument == "view"
+    with pytest.raises(spm.InputError, match=match):
+        Visualizer(viz.robot, view=view)
+
+
+def page_views(text: str) -> tuple[dict[str, Any], Any]:
+    """The view settings (name -> [path, property, value]) of a saved page and the
+    view it opens in."""
+    views = re.search(r"var spm_views = (\{.*?\});\n", text, re.DOTALL)
+    opened = re.search(r"var view = (.*?);\n", text)
+    assert views is not None and opened is not None, "no views in the page"
+    return json.loads(views.group(1)), json.loads(opened.group(1))
+
+
+def page_eye(settings: list[list[Any]]) -> np.ndarray:
+    """The camera position (z-up world) that a page's view settings set."""
+    (position,) = [value for path, key, value in settings if key == "position"]
+    assert settings[0][0] == ["Cameras", "default", "rotated", "<object>"]
+    x3, y3, z3 = position
+    return np.array([x3, -z3, y3])
+
+
+def test_saved_page_has_the_key_and_the_views(robot: SPMRobot) -> None:
+    viz = Visualizer(robot, view="side")
+    viz.display(np.radians(DEMO_DEG))
+    text = viz.static_html()
+    key = re.search(r'<ul id="spm-key">(.*?)</ul>', text)
+    assert key is not None
+    legs = re.findall(r'<li class="spm-key-leg" data-leg="(\d)">(.*?)</li>', key.group(1))
+    assert [leg for leg, _ in legs] == ["1", "2", "3"]
+    for i, entry in legs:
+        for link in (f"proximal_{i}", f"distal_{i}"):
+            r, g, b = (round(255 * c) for c in LINK_COLORS[link][:3])
+            assert f"background:#{r:02x}{g:02x}{b:02x}" in entry
+    assert re.findall(r'data-axis="(\w+)"', key.group(1)) == []  # no arrows drawn
+    assert 'class="spm-key-colliding"' in key.group(1)
+    viz.set_overlays(joint_axes=True, platform_frame=True)
+    axes = re.findall(r'data-axis="(\w+)"', viz.static_html())
+    assert axes == ["u", "w", "v", "frame"]
+    views, opened = page_views(text)
+    assert list(views) == list(VIEWS) and opened == "side"
+    assert re.findall(r'<button type="button" data-view="(\w+)"', text) == list(VIEWS)
+    for name, settings in views.items():
+        eye = page_eye(settings)
+        preset = VIEWS[name]
+        np.testing.assert_allclose(
+            eye / np.linalg.norm(eye),
+            view_direction(preset.azimuth, preset.elevation),
+            atol=TOL["camera"],
+        )
+    # after set_camera the page opens in the camera as set
+    viz.set_camera(azimuth=0.3, elevation=0.2)
+    assert viz.view is None and page_views(viz.static_html())[1] is None
 
 
 # ---------------------------------------------------------------------- animations

@@ -107,9 +107,10 @@ def _unavailable(reason: str) -> None:
     pytest.skip(reason)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    """One headless Chromium for the whole session (Debian's, never a download)."""
+    """One headless Chromium for this module (Debian's, never a download); closed at
+    its end, so later modules can start Playwright's sync API again."""
     executable = find_chromium()
     if executable is None:
         _unavailable("no Chromium on the PATH (Debian: apt install chromium)")
@@ -309,6 +310,14 @@ def test_exported_html_renders_the_same_offline(
 ) -> None:
     viz, page = live
     show(viz, page, colliding_q(viz.robot))
+    viz.set_view("iso")  # a saved page opens framed on its pose: frame the live one too
+    camera = viz.scene.property("/Cameras/default/rotated/<object>", "position")
+    wait_until(
+        lambda: np.allclose(
+            page.evaluate("viewer.camera.position.toArray()"), camera, atol=TOL["matrix"]
+        ),
+        "the framed view",
+    )
     served = capture(page)
     offline, blocked = open_offline(browser, viz.save_html(tmp_path / "scene.html"))
     try:
@@ -377,3 +386,100 @@ def test_screenshot_of_a_saved_scene(browser: Any, robot: SPMRobot, tmp_path: Pa
         screenshot(html, tmp_path / "bad.png", size=(0, 240), browser=browser)
     with pytest.raises(FileNotFoundError, match=r"no such HTML file: .*missing\.html"):
         screenshot(tmp_path / "missing.html", tmp_path / "bad.png", browser=browser)
+
+
+# ----------------------------------------------------------------- views and the key
+#: Hides (false) or shows (true) the node at a meshcat path and redraws.
+_SET_VISIBLE = f"""([path, visible]) => {{
+    ({_FIND})(path).object.visible = visible;
+    viewer.set_dirty();
+}}"""
+#: Smallest share of the view each distal link shows (not hidden by the others).
+DISTAL_SHARE = 0.002
+
+
+def changed_when_hidden(page: Any, path: str) -> np.ndarray:
+    """Pixels (height, width) that change when the node at ``path`` is hidden."""
+    parts = [part for part in path.split("/") if part]
+    shown = capture(page)
+    page.evaluate(_SET_VISIBLE, [parts, False])
+    try:
+        hidden = capture(page)
+    finally:
+        page.evaluate(_SET_VISIBLE, [parts, True])
+    return np.any(np.abs(shown - hidden) > 8, axis=-1)
+
+
+def distal_shares(page: Any) -> dict[str, float]:
+    """Share of the view where each distal link is seen."""
+    return {
+        f"distal_{i}": float(changed_when_hidden(page, link_path(f"distal_{i}")).mean())
+        for i in (1, 2, 3)
+    }
+
+
+def test_study_input_shows_the_key_and_all_three_legs(
+    browser: Any, robot: SPMRobot, tmp_path: Path
+) -> None:
+    viz = Visualizer(robot, joint_axes=True, platform_frame=True)  # as the demo's scene
+    viz.display(np.radians(DEMO_DEG))
+    page, blocked = open_offline(browser, viz.save_html(tmp_path / "study.html"))
+    try:
+        assert page.evaluate("window.spm_view") == "iso"
+        legs = page.locator("#spm-key li.spm-key-leg")
+        assert legs.count() == 3
+        assert [legs.nth(k).get_attribute("data-leg") for k in range(3)] == ["1", "2", "3"]
+        assert all(legs.nth(k).is_visible() for k in range(3))
+        axes = page.locator("#spm-key li.spm-key-axis")
+        assert [axes.nth(k).get_attribute("data-axis") for k in range(axes.count())] == [
+            "u",
+            "w",
+            "v",
+            "frame",
+        ]
+        box = page.locator("#spm-key").bounding_box()
+        assert box is not None and box["x"] >= 0 and box["y"] >= 0
+        assert box["x"] + box["width"] <= VIEWPORT["width"]
+        iso = distal_shares(page)
+        # every leg's distal link is seen, each in its own colour somewhere
+        image = capture(page)
+        for i in (1, 2, 3):
+            assert iso[f"distal_{i}"] > DISTAL_SHARE, iso
+            for link in (f"proximal_{i}", f"distal_{i}"):
+                rgb = 255 * np.array(LINK_COLORS[link][:3])
+                near = np.all(np.abs(image - rgb) < 40, axis=-1).sum()
+                assert near > 50, f"{link}: {near} pixels of its colour"
+    finally:
+        page.close()
+    assert blocked == []
+    # the old default camera (azimuth -30, elevation 20 deg: the platform edge-on)
+    # showed the worst-seen distal link less
+    viz.set_camera(azimuth=np.radians(-30.0), elevation=np.radians(20.0))
+    page, _ = open_offline(browser, viz.save_html(tmp_path / "edge_on.html"))
+    try:
+        assert page.evaluate("window.spm_view === undefined")
+        old = distal_shares(page)
+    finally:
+        page.close()
+    assert min(iso.values()) > 1.2 * min(old.values()), (iso, old)
+
+
+@pytest.mark.parametrize("name", ["iso", "top", "front", "side"])
+def test_every_view_frames_the_mechanism(
+    browser: Any, robot: SPMRobot, tmp_path: Path, name: str
+) -> None:
+    viz = Visualizer(robot, joint_axes=True)
+    viz.display(np.radians(DEMO_DEG))
+    page, _ = open_offline(browser, viz.save_html(tmp_path / "views.html"))
+    try:
+        page.click(f'#spm-views button[data-view="{name}"]')  # the page's button
+        assert page.evaluate("window.spm_view") == name
+        robot_pixels = changed_when_hidden(page, ROOT)
+    finally:
+        page.close()
+    assert robot_pixels.mean() > TOL["robot_pixels"], f"{name}: {robot_pixels.mean():.1%}"
+    rows, cols = np.nonzero(robot_pixels)
+    height, width = robot_pixels.shape
+    assert rows.min() > 0 and rows.max() < height - 1, f"{name}: cut at the top or bottom"
+    assert cols.min() > 0 and cols.max() < width - 1, f"{name}: cut at a side"
+    assert abs(0.5 * (rows.min() + rows.max()) - height / 2) < 0.1 * height

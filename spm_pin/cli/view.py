@@ -37,12 +37,24 @@ def _visualizer(args: argparse.Namespace) -> Any:
     except ImportError as exc:
         raise _UsageError(str(exc)) from exc
     robot = build_robot(_design(args))
-    return Visualizer(robot, joint_axes=args.axes, platform_frame=args.frame)
+    return Visualizer(robot, joint_axes=args.axes, platform_frame=args.frame, view=args.view)
+
+
+#: The camera's preset views (spm_pin.viz.views.VIEWS, named here so that building the
+#: parser does not import meshcat).
+_VIEWS = ("iso", "top", "front", "side")
 
 
 def _add_view_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--axes", action="store_true", help="draw the joint axes u_i, w_i, v_i")
     parser.add_argument("--frame", action="store_true", help="draw the platform frame")
+    parser.add_argument(
+        "--view",
+        choices=_VIEWS,
+        default=_VIEWS[0],
+        help="camera view, framed on the robot: iso (default: the three legs and the "
+        "platform's face), top, front or side; the saved page has a button for each",
+    )
 
 
 def _serve_until_interrupted(viz: Any, record: Record, as_json: bool) -> None:
@@ -101,6 +113,7 @@ def _run_show(args: argparse.Namespace) -> int:
     theta_deg = [args.T1, args.T2, args.T3]
     mode = _assembly_mode(theta_deg, args.mode, viz.robot.design)
     pairs = _display(viz, theta_deg, mode)
+    viz.set_view(args.view)  # framed on the pose shown
     record: Record = {
         "design": viz.robot.design.name,
         "theta_deg": theta_deg,
@@ -126,6 +139,7 @@ def _run_animate(args: argparse.Namespace) -> int:
     end = np.radians(args.to_deg)
     path = start + np.linspace(0.0, 1.0, args.samples)[:, None] * (end - start)
     motion = viz.animate(path, dt=args.duration / (args.samples - 1))
+    viz.set_view(args.view)  # framed on the motion
     record: Record = {
         "design": viz.robot.design.name,
         "from_deg": args.from_deg,

@@ -6,6 +6,8 @@ Needs the ``viz`` extra (``pip install "spm-pin[viz]"``, which brings meshcat);
 * :class:`Visualizer`: the robot with its legs in distinct colours, colliding links
   in black, optional joint axes and platform frame, animations, HTML export.
 * :class:`MeshcatServer`: a meshcat server process that is always stopped.
+* :data:`VIEWS`: the camera's preset views (``iso``, ``top``, ``front``, ``side``),
+  :mod:`spm_pin.viz.views`; the key of the colours, :mod:`spm_pin.viz.key`.
 * :mod:`spm_pin.viz.browser`: pictures of a scene from a headless Chromium.
 """
 
@@ -26,6 +28,7 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
     ) from exc
 
 from .server import MeshcatServer, ViewerError
+from .views import DEFAULT_VIEW, VIEWS
 from .visualizer import (
     COLLIDING_COLOR,
     JOINT_AXIS_COLORS,
@@ -38,9 +41,11 @@ from .visualizer import (
 
 __all__ = [
     "COLLIDING_COLOR",
+    "DEFAULT_VIEW",
     "JOINT_AXIS_COLORS",
     "LINK_COLORS",
     "ROOT",
+    "VIEWS",
     "MeshcatServer",
     "RobotAnimation",
     "ViewerError",

@@ -199,13 +199,25 @@ class Scene:
         lowered: dict[str, Any] = umsgpack.unpackb(node.object)["object"]
         return lowered
 
-    def static_html(self, title: str = "spm-pin", caption: str | None = None) -> str:
+    def static_html(
+        self,
+        title: str = "spm-pin",
+        caption: str | None = None,
+        *,
+        key: str | None = None,
+        views: dict[str, list[tuple[str, str, Any]]] | None = None,
+        view: str | None = None,
+    ) -> str:
         """One self-contained HTML page showing the scene (and playing its animation).
 
         The page needs no server and no network: meshcat's viewer is inlined and the
         scene follows as base64 msgpack commands, decoded in order when the page loads.
         A ``caption``, when given, is a line of text at the bottom left of the page
-        (element id ``spm-caption``).
+        (element id ``spm-caption``); a ``key`` is HTML put at the top left.
+        ``views`` maps a view name to the ``(path, property, value)`` settings that
+        show it: the page gets one button per view (element ``#spm-views``, buttons
+        with ``data-view``; the global function ``spm_set_view(name)`` does the same)
+        and shows ``view`` (when given) once the scene is built.
         """
         payload = json.dumps(
             [base64.b64encode(data).decode("ascii") for _, _, data in self.commands()]
@@ -213,11 +225,31 @@ class Scene:
         caption_html = (
             "" if caption is None else f'<div id="spm-caption">{html.escape(caption)}</div>\n'
         )
+        buttons = ""
+        settings: dict[str, list[list[Any]]] = {}
+        if views:
+            settings = {
+                name: [[list(split_path(path)), prop, value] for path, prop, value in items]
+                for name, items in views.items()
+            }
+            buttons = (
+                '<div id="spm-views">'
+                + "".join(
+                    f'<button type="button" data-view="{html.escape(name)}" '
+                    f'onclick="spm_set_view(this.dataset.view)">{html.escape(name)}</button>'
+                    for name in views
+                )
+                + "</div>\n"
+            )
         return _PAGE.format(
             title=html.escape(title),
             caption=caption_html,
+            key=key or "",
+            buttons=buttons,
             viewer=viewer_script(),
             commands=payload,
+            views=json.dumps(settings),
+            view=json.dumps(view),
         )
 
 
@@ -233,15 +265,35 @@ body {{ margin: 0; overflow: hidden; }}
   padding: 4px 8px; font: 13px/1.4 sans-serif; color: #222;
   background: rgba(255, 255, 255, 0.85); border-radius: 3px; pointer-events: none;
   z-index: 10; }}
+#spm-key {{ position: absolute; left: 8px; top: 8px; margin: 0; padding: 4px 8px;
+  list-style: none; font: 12px/1.5 sans-serif; color: #222;
+  background: rgba(255, 255, 255, 0.85); border-radius: 3px; pointer-events: none;
+  z-index: 10; }}
+.spm-swatch {{ display: inline-block; width: 10px; height: 10px; margin-right: 3px;
+  vertical-align: -1px; border: 1px solid rgba(0, 0, 0, 0.3); }}
+#spm-key .spm-swatch:last-of-type {{ margin-right: 6px; }}
+#spm-views {{ position: absolute; left: 8px; bottom: 40px; z-index: 10; }}
+#spm-views button {{ font: 12px sans-serif; margin-right: 2px; }}
 </style>
 </head>
 <body>
 <div id="meshcat-pane"></div>
-{caption}<script>
+{caption}{key}{buttons}<script>
 {viewer}
 </script>
 <script>
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+var spm_views = {views};
+function spm_set_view(name) {{
+  var settings = spm_views[name];
+  if (settings === undefined) return false;
+  for (var i = 0; i < settings.length; i++) {{
+    viewer.set_property(settings[i][0], settings[i][1], settings[i][2]);
+  }}
+  viewer.set_dirty();
+  window.spm_view = name;
+  return true;
+}}
 (function () {{
   var commands = {commands};
   for (var i = 0; i < commands.length; i++) {{
@@ -250,6 +302,8 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
     for (var j = 0; j < text.length; j++) bytes[j] = text.charCodeAt(j);
     viewer.handle_command_bytearray(bytes);
   }}
+  var view = {view};
+  if (view !== null) spm_set_view(view);
   window.spm_scene_ready = true;
 }})();
 </script>

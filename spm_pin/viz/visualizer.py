@@ -11,11 +11,13 @@ Scene layout (meshcat paths; the world frame is z-up, O at the origin):
 * ``/meshcat/spm/overlays/platform_frame``: the platform frame's x, y, z axes
   (red, green, blue; hidden unless asked for).
 
-The default camera looks at O from the front, a little above, and is zoomed so the
-robot fills most of the view; it orbits about O. meshcat 0.3.2's camera helpers are
-broken, so the camera is set through its ``position``, ``zoom`` and ``view`` (a
-vertical lens shift that centres the robot, whose base reaches far below O)
-properties.
+The camera looks at O from a view of :mod:`spm_pin.viz.views` (default ``iso``:
+the three legs and the platform's face) and is framed so the robot fills most of the
+view; it orbits about O. meshcat 0.3.2's camera helpers are broken, so the camera is
+set through its ``position``, ``zoom`` and ``view`` (a vertical lens shift that
+centres the robot, whose base reaches far below O) properties. A saved page frames
+the pose it shows, has buttons for the preset views and a key of the colours
+(:mod:`spm_pin.viz.key`).
 """
 
 from __future__ import annotations
@@ -29,7 +31,6 @@ from typing import Any
 import meshcat.geometry as mg
 import numpy as np
 import numpy.typing as npt
-import pinocchio as pin
 
 from ..collision import build_robot, checker_of
 from ..errors import InputError, UnreachableError
@@ -37,11 +38,25 @@ from ..kinematics import track
 from ..kinematics.assembly import home_mode_label, select_assembly
 from ..model.geometry import LINK_NAMES, link_meshes
 from ..model.robot import SPMRobot
+from ._clips import transform_clip, visibility_clip
 from ._scene import Scene
+from .key import COLLIDING_COLOR, JOINT_AXIS_COLORS, LINK_COLORS, key_html
+from .key import FRAME_COLORS as _FRAME_COLORS
 from .server import MeshcatServer, ViewerError
+from .views import (
+    CAMERA_PATH,
+    DEFAULT_VIEW,
+    VIEWS,
+    CameraFit,
+    check_view,
+    fit_camera,
+    view_direction,
+)
 
 __all__ = [
     "COLLIDING_COLOR",
+    "DEFAULT_AZIMUTH",
+    "DEFAULT_ELEVATION",
     "JOINT_AXIS_COLORS",
     "LINK_COLORS",
     "ROOT",
@@ -57,40 +72,12 @@ LinkPair = tuple[str, str]
 #: Scene path of the robot.
 ROOT = "/meshcat/spm"
 
-#: Link colours (RGBA, 0..1): each leg its own hue, the proximal link darker than the
-#: distal one; the base and the platform neutral.
-LINK_COLORS: dict[str, Color] = {
-    "base": (0.50, 0.51, 0.54, 1.0),
-    "proximal_1": (0.00, 0.40, 0.70, 1.0),
-    "distal_1": (0.35, 0.65, 0.90, 1.0),
-    "proximal_2": (0.85, 0.40, 0.00, 1.0),
-    "distal_2": (0.98, 0.65, 0.25, 1.0),
-    "proximal_3": (0.45, 0.20, 0.60, 1.0),
-    "distal_3": (0.70, 0.50, 0.82, 1.0),
-    "platform": (0.86, 0.86, 0.82, 1.0),
-}
-#: Colour of a link that collides with another.
-COLLIDING_COLOR: Color = (0.0, 0.0, 0.0, 1.0)
-#: Colours of the joint-axis arrows, by axis family.
-JOINT_AXIS_COLORS: dict[str, Color] = {
-    "u": (0.20, 0.20, 0.20, 1.0),
-    "w": (0.95, 0.75, 0.05, 1.0),
-    "v": (0.00, 0.65, 0.60, 1.0),
-}
-_FRAME_COLORS: dict[str, Color] = {
-    "x": (0.90, 0.10, 0.10, 1.0),
-    "y": (0.10, 0.75, 0.10, 1.0),
-    "z": (0.10, 0.20, 0.95, 1.0),
-}
-
-#: Default camera direction seen from O: azimuth from +x towards +y and elevation
-#: above the xy plane [rad].
-DEFAULT_AZIMUTH = math.radians(-30.0)
-DEFAULT_ELEVATION = math.radians(20.0)
-_CAMERA_DISTANCE = 1.5  # [m] from O; zoom sets the size
-_CAMERA_FOV = math.radians(75.0)  # meshcat's default camera (vertical field of view)
-_CAMERA = "/Cameras/default/rotated/<object>"
-_MIN_ASPECT = 4.0 / 3.0  # the camera fit assumes a view at least this wide (width / height)
+#: Default camera direction seen from O (the ``iso`` view of :data:`VIEWS`): azimuth
+#: from +x towards +y and elevation above the xy plane [rad].
+DEFAULT_AZIMUTH = VIEWS[DEFAULT_VIEW].azimuth
+DEFAULT_ELEVATION = VIEWS[DEFAULT_VIEW].elevation
+_FILL = 0.8  # default share of the view the robot takes
+_EXTENT_SAMPLES = 13  # poses of an animation the camera frames
 
 _ARROW_RADIUS = 0.0015  # [m]
 _HEAD_LENGTH = 0.012  # [m]
@@ -104,6 +91,7 @@ def link_path(link: str) -> str:
 
 
 def _hex(color: Color) -> int:
+    """The colour as the integer three.js takes (0xRRGGBB)."""
     r, g, b = (round(255 * min(max(c, 0.0), 1.0)) for c in color[:3])
     return (r << 16) | (g << 8) | b
 
@@ -190,6 +178,8 @@ class Visualizer:
         check_collisions: Turn colliding links black on every :meth:`display` and in
             animations (``robot.collisions``).
         collision_margin: Links nearer than this count as colliding [m].
+        view: The camera's view, a name of :data:`~spm_pin.viz.views.VIEWS`
+            (``iso``, ``top``, ``front``, ``side``).
 
     Attributes:
         robot: The robot drawn.
@@ -206,7 +196,9 @@ class Visualizer:
         platform_frame: bool = False,
         check_collisions: bool = True,
         collision_margin: float = 0.0,
+        view: str = DEFAULT_VIEW,
     ) -> None:
+        check_view(view)
         if robot is None:
             robot = build_robot()
         if not isinstance(robot, SPMRobot):
@@ -238,9 +230,12 @@ class Visualizer:
         self._overlays_shown = {"joint_axes": False, "platform_frame": False}
         self._build()
         self._q = np.zeros(robot.model.nq)
+        self._extent_qs: list[FloatArray] = [self._q]
+        self._view: str | None = view
+        self._camera = (VIEWS[view].azimuth, VIEWS[view].elevation, _FILL)
         self.set_overlays(joint_axes=joint_axes, platform_frame=platform_frame)
         self.display(self._q)
-        self.set_camera()
+        self.set_view(view)
 
     def __repr__(self) -> str:
         server = self._server
@@ -308,30 +303,56 @@ class Visualizer:
                 self._overlays_shown[name] = bool(value)
 
     def _extent_points(self) -> FloatArray:
-        """Points that the camera must see: the link meshes and the overlays shown."""
-        transforms = self._pose_transforms(self._q)
-        points = [
-            self._meshes[name].vertices @ transforms[link_path(name)][:3, :3].T
-            + transforms[link_path(name)][:3, 3]
-            for name in LINK_NAMES
-        ]
-        for arrow in self._arrows:
-            if self._overlays_shown[arrow.overlay]:
-                T = transforms.get(arrow.node, np.eye(4))
-                points.append((T[:3, :3] @ (arrow.length * arrow.direction) + T[:3, 3])[None])
+        """Points that the camera must see: the link meshes and the overlays shown, in
+        the pose shown (in an animation: in some of its samples, the ends included)."""
+        points = []
+        for q in self._extent_qs:
+            transforms = self._pose_transforms(q)
+            for name in LINK_NAMES:
+                T = transforms[link_path(name)]
+                points.append(self._meshes[name].vertices @ T[:3, :3].T + T[:3, 3])
+            for arrow in self._arrows:
+                if self._overlays_shown[arrow.overlay]:
+                    T = transforms.get(arrow.node, np.eye(4))
+                    points.append((T[:3, :3] @ (arrow.length * arrow.direction) + T[:3, 3])[None])
         return np.concatenate(points)
+
+    def _fit(self, azimuth: float, elevation: float, fill: float) -> CameraFit:
+        return fit_camera(self._extent_points(), view_direction(azimuth, elevation), fill)
+
+    def set_view(self, view: str = DEFAULT_VIEW, *, fill: float = _FILL) -> None:
+        """Look at O from a preset view, framed on the robot as displayed.
+
+        Args:
+            view: A name of :data:`~spm_pin.viz.views.VIEWS`: ``iso`` (the default:
+                the three legs and the platform's face), ``top``, ``front``, ``side``.
+            fill: Fraction of the view height (and width) the robot takes, in (0, 1].
+
+        Raises:
+            InputError: an unknown view (the message lists the names) or a bad fill.
+        """
+        preset = check_view(view)
+        self.set_camera(preset.azimuth, preset.elevation, fill=fill)
+        self._view = view
+
+    @property
+    def view(self) -> str | None:
+        """The preset view of the camera (None after :meth:`set_camera`)."""
+        return self._view
 
     def set_camera(
         self,
         azimuth: float = DEFAULT_AZIMUTH,
         elevation: float = DEFAULT_ELEVATION,
         *,
-        fill: float = 0.8,
+        fill: float = _FILL,
     ) -> None:
-        """Look at O from a direction, zoomed so the robot as displayed fills the view.
+        """Look at O from a direction, framed so the robot as displayed fills the view.
 
-        The camera orbits about O when dragged. The fit assumes a view at least 4:3
-        (width:height), as browser windows are.
+        The camera stands where the robot's bounding sphere about O fits in the field
+        of view (:func:`~spm_pin.viz.views.fit_camera`), zooms and shifts its lens so
+        the robot fills ``fill`` of the view, and orbits about O when dragged. The fit
+        assumes a view at least 4:3 (width:height), as browser windows are.
 
         Args:
             azimuth: Direction of the camera seen from O, from +x towards +y [rad].
@@ -355,33 +376,10 @@ class Visualizer:
             )
         if not 0 < fill <= 1:
             raise InputError(f"fill must lie in (0, 1], got {fill!r}", argument="fill", value=fill)
-        ce, se = math.cos(elevation), math.sin(elevation)
-        back = np.array([ce * math.cos(azimuth), ce * math.sin(azimuth), se])
-        eye = _CAMERA_DISTANCE * back
-        right = np.cross(-back, [0.0, 0.0, 1.0])
-        right /= np.linalg.norm(right)
-        up = np.cross(right, -back)
-        relative = self._extent_points() - eye
-        depth = relative @ -back
-        x = relative @ right / depth
-        y = relative @ up / depth
-        half = max(np.ptp(y), 2 * np.max(np.abs(x)) / _MIN_ASPECT) / (2 * fill)
-        zoom = math.tan(_CAMERA_FOV / 2) / half
-        shift = -0.5 * (y.max() + y.min()) / (2 * half)  # lens shift, in view heights
-        scene = self.scene
-        # three.js is y-up: the world point (x, y, z) is (x, z, -y) there.
-        scene.set_property(_CAMERA, "position", [float(eye[0]), float(eye[2]), float(-eye[1])])
-        scene.set_property(_CAMERA, "zoom", float(zoom))
-        view = {
-            "enabled": True,
-            "fullWidth": 1.0,
-            "fullHeight": 1.0,
-            "offsetX": 0.0,
-            "offsetY": float(shift),
-            "width": 1.0,
-            "height": 1.0,
-        }
-        scene.set_property(_CAMERA, "view", view)
+        self._camera = (float(azimuth), float(elevation), float(fill))
+        self._view = None
+        for key, value in self._fit(*self._camera).properties():
+            self.scene.set_property(CAMERA_PATH, key, value)
 
     # ------------------------------------------------------------------------ poses
     def _configuration(self, x: npt.ArrayLike, mode: str) -> tuple[FloatArray, str | None, bool]:
@@ -486,6 +484,7 @@ class Visualizer:
             self.scene.set_animation([], play=False, repetitions=1)
             self._animated = False
         pairs = self._show(q)
+        self._extent_qs = [self._q]
         self._mode, self._home = label, home
         self._caption = None if label is None else _pose_caption(self.robot, q, label, home, pairs)
         return pairs
@@ -609,15 +608,17 @@ class Visualizer:
         poses = [self._pose_transforms(q) for q in qs]
         collisions = [self._collisions(q) for q in qs]
         animations = [
-            _transform_clip(node, times, [pose[node] for pose in poses]) for node in poses[0]
+            transform_clip(node, times, [pose[node] for pose in poses]) for node in poses[0]
         ]
         if self.check_collisions:
             for name in LINK_NAMES:
                 black = [any(name in pair for pair in pairs) for pairs in collisions]
                 free = [not b for b in black]
-                animations.append(_visibility_clip(f"{link_path(name)}/free", times, free))
-                animations.append(_visibility_clip(f"{link_path(name)}/colliding", times, black))
+                animations.append(visibility_clip(f"{link_path(name)}/free", times, free))
+                animations.append(visibility_clip(f"{link_path(name)}/colliding", times, black))
         self._show(qs[0])
+        picked = np.unique(np.linspace(0, qs.shape[0] - 1, _EXTENT_SAMPLES).round().astype(int))
+        self._extent_qs = [qs[k] for k in picked]
         self.scene.set_animation(animations, play=bool(play), repetitions=repetitions)
         self._animated = True
         self._mode, self._home = None, False
@@ -695,7 +696,10 @@ class Visualizer:
     def static_html(self, title: str | None = None, caption: str | None = None) -> str:
         """The scene (and its animation) as one self-contained HTML page.
 
-        The page inlines meshcat's viewer, needs no server and no network.
+        The page inlines meshcat's viewer, needs no server and no network. It opens
+        in the camera's view (:attr:`view`) framed on the pose shown (for an
+        animation, on its samples), has a button per preset view (``#spm-views``)
+        and a key of the legs' colours and of the arrows drawn (``#spm-key``).
 
         Args:
             title: Page title (default: ``spm-pin: <design name>``).
@@ -703,9 +707,18 @@ class Visualizer:
                 :meth:`display` of input angles, the angles, the assembly mode shown
                 and the colliding links; none otherwise).
         """
+        fill = self._camera[2]
+        views = {
+            name: [(CAMERA_PATH, key, value) for key, value in fit.properties()]
+            for name, preset in VIEWS.items()
+            for fit in [self._fit(preset.azimuth, preset.elevation, fill)]
+        }
         return self.scene.static_html(
             title or f"spm-pin: {self.robot.design.name}",
             caption if caption is not None else self._caption,
+            key=key_html(**self._overlays_shown),
+            views=views,
+            view=self._view,
         )
 
     def save_html(
@@ -742,40 +755,6 @@ def _pose_caption(
     else:
         text += "; no collision"
     return text
-
-
-def _clip(path: str, tracks: list[dict[str, Any]]) -> dict[str, Any]:
-    """One node's part of a meshcat animation (a three.js clip, times in seconds)."""
-    return {"path": path, "clip": {"fps": 1.0, "name": "default", "tracks": tracks}}
-
-
-def _keys(times: FloatArray, values: list[Any]) -> list[dict[str, Any]]:
-    return [{"time": float(t), "value": v} for t, v in zip(times, values, strict=True)]
-
-
-def _transform_clip(path: str, times: FloatArray, matrices: list[FloatArray]) -> dict[str, Any]:
-    """Position and orientation keys of a node from its transforms (4, 4) at ``times``."""
-    quaternions = np.array([pin.Quaternion(m[:3, :3]).coeffs() for m in matrices])  # x, y, z, w
-    for k in range(1, len(quaternions)):  # the short way round between keys
-        if quaternions[k] @ quaternions[k - 1] < 0:
-            quaternions[k] = -quaternions[k]
-    positions = [m[:3, 3].tolist() for m in matrices]
-    return _clip(
-        path,
-        [
-            {"name": ".position", "type": "vector3", "keys": _keys(times, positions)},
-            {
-                "name": ".quaternion",
-                "type": "quaternion",
-                "keys": _keys(times, quaternions.tolist()),
-            },
-        ],
-    )
-
-
-def _visibility_clip(path: str, times: FloatArray, visible: list[bool]) -> dict[str, Any]:
-    """Keys that show or hide a node (three.js switches booleans, never blends them)."""
-    return _clip(path, [{"name": ".visible", "type": "boolean", "keys": _keys(times, visible)}])
 
 
 def _is_real(value: Any) -> bool:
