@@ -16,6 +16,10 @@ uvicorn and pydantic); ``import spm_pin`` never imports this package.
 * ``WS /stream`` (:mod:`spm_pin.remote.stream`): the state pushed at a requested
   rate, goals streamed back by the one client that holds the :class:`Lease`; the
   twin stops when that client goes quiet for the deadline or disconnects.
+* :class:`Client` and :class:`AsyncClient` (:mod:`spm_pin.remote.client`): the
+  Python client of a server, blocking and ``async``, with its streams
+  (:class:`Stream`, :class:`AsyncStream`) and errors (:class:`RemoteError`,
+  :class:`AuthError`, :class:`RemoteRefusedError`); they need httpx.
 """
 
 from __future__ import annotations
@@ -43,6 +47,16 @@ from .backend import (
     TwinBackend,
     TwinState,
 )
+from .client import (
+    DEFAULT_URL,
+    AsyncClient,
+    AsyncStream,
+    AuthError,
+    Client,
+    RemoteError,
+    RemoteRefusedError,
+    Stream,
+)
 from .server import (
     DEFAULT_HOST,
     DEFAULT_PORT,
@@ -65,14 +79,19 @@ __all__ = [
     "DEFAULT_MAX_BODY_BYTES",
     "DEFAULT_PORT",
     "DEFAULT_RATE",
+    "DEFAULT_URL",
     "INSTALL_REMOTE",
     "MAX_RATE",
     "MIN_RATE",
     "OPEN_PATHS",
     "RATE_CHECK_NAMES",
     "TOKEN_ENVIRONMENT_VARIABLE",
+    "AsyncClient",
+    "AsyncStream",
+    "AuthError",
     "BackgroundServer",
     "CheckOutcome",
+    "Client",
     "CollisionState",
     "GoalRefusedError",
     "GoalReport",
@@ -80,6 +99,9 @@ __all__ = [
     "Lease",
     "LeaseHeldError",
     "PairState",
+    "RemoteError",
+    "RemoteRefusedError",
+    "Stream",
     "TwinBackend",
     "TwinState",
     "check_binding",
