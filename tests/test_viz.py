@@ -1044,3 +1044,122 @@ def _children(pid: int) -> list[int]:
             if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
                 children.append(int(entry.name))
     return children
+
+
+# ------------------------------------------------------------------------ contacts
+def _surface_distance(robot: SPMRobot, q: np.ndarray, link: str, point: np.ndarray) -> float:
+    """Distance from a world point to a link's triangle mesh (coal, a BVH of the drawn
+    mesh, not the collision layer's convex pieces) [m]."""
+    import coal
+
+    mesh = link_meshes(robot.design)[link]
+    model = coal.BVHModelOBBRSS()
+    model.beginModel(len(mesh.faces), len(mesh.vertices))
+    model.addVertices(np.ascontiguousarray(mesh.vertices, dtype=np.float64))
+    model.addTriangles(np.ascontiguousarray(mesh.faces, dtype=np.int64))
+    model.endModel()
+    placement = robot.placements(q)[link]
+    at = coal.Transform3s(np.eye(3), np.asarray(point, dtype=float))
+    return float(
+        coal.distance(
+            model,
+            coal.Transform3s(placement.rotation, placement.translation),
+            coal.Sphere(1e-9),
+            at,
+            coal.DistanceRequest(),
+            coal.DistanceResult(),
+        )
+    )
+
+
+def test_contact_markers_of_the_study_colliding_input(viz: Visualizer) -> None:
+    """[60, 90, 220] deg (nearest real mode): one marker per colliding pair, at points
+    on both links, with the collision layer's depths; the page lists them."""
+    from spm_pin.viz.contacts import CONTACTS_PATH, contact_path, shown_contacts
+
+    robot = viz.robot
+    pairs = viz.display(np.radians(STUDY_COLLIDING_DEG))
+    q = viz.q
+    truth = robot.collisions(q)
+    assert pairs == truth and len(truth) >= 2
+    assert [c.pair for c in viz.contacts] == truth
+    assert sorted(shown_contacts(viz.scene)) == sorted(f"{a}-{b}" for a, b in truth)
+    distances = robot.distances(q)
+    for contact in viz.contacts:
+        assert contact.distance == pytest.approx(distances[contact.pair], abs=1e-9)
+        assert contact.depth > 0
+        assert contact.depth == pytest.approx(-distances[contact.pair], abs=1e-9)
+        assert np.linalg.norm(contact.p2 - contact.p1) == pytest.approx(contact.depth, abs=1e-6)
+        for point in (contact.p1, contact.p2):
+            for link in contact.pair:
+                assert _surface_distance(robot, q, link, point) <= contact.depth + 1e-4
+        path = contact_path(contact.pair)
+        assert viz.scene.children(path) == ["segment", "p1", "p2"]
+        for name, point in (("p1", contact.p1), ("p2", contact.p2)):
+            transform = viz.scene.transform(f"{path}/{name}")
+            assert transform is not None
+            assert np.allclose(transform[:3, 3], point, atol=1e-12)
+    page = viz.static_html()
+    overlay = page.split('<ul id="spm-contacts"', 1)[1].split("</ul>", 1)[0]
+    for contact in viz.contacts:
+        assert f"{contact.name}: {1000 * contact.depth:.1f} mm deep" in overlay
+    # a safe pose hides every marker and says so
+    assert viz.display(np.radians(DEMO_DEG)) == [] == viz.contacts
+    assert shown_contacts(viz.scene) == []
+    assert set(viz.scene.children(CONTACTS_PATH)) == {f"{a}-{b}" for a, b in truth}
+    overlay = viz.static_html().split('<ul id="spm-contacts"', 1)[1].split("</ul>", 1)[0]
+    assert "no collision" in overlay and "mm deep" not in overlay
+
+
+def test_colliding_links_are_shaded_dark(viz: Visualizer) -> None:
+    material = viz.scene.object(f"{link_path('proximal_2')}/colliding")["materials"][0]
+    assert material["type"] == "MeshPhongMaterial"
+    assert max(COLLIDING_COLOR[:3]) <= 0.15 and min(COLLIDING_COLOR[:3]) > 0.0
+    assert material["shininess"] > 0 and material["specular"] > 0
+
+
+@pytest.mark.parametrize("theta_deg", [DEMO_DEG, STUDY_COLLIDING_DEG])
+def test_clearance_on_request(viz: Visualizer, theta_deg: list[float]) -> None:
+    from spm_pin.viz.contacts import CONTACTS_PATH, shown_contacts
+
+    viz.display(np.radians(theta_deg))
+    assert viz.clearance is None and "clearance" not in shown_contacts(viz.scene)
+    viz.display(np.radians(theta_deg), clearance=True)
+    robot, q = viz.robot, viz.q
+    free = {pair: d for pair, d in robot.distances(q).items() if d > 0}
+    nearest = min(free.values())
+    if not robot.collisions(q):
+        assert nearest == pytest.approx(robot.min_clearance(q), abs=1e-12)
+    found = viz.clearance
+    assert found is not None and free[found.pair] == nearest
+    assert np.linalg.norm(found.p2 - found.p1) == pytest.approx(nearest, abs=1e-6)
+    assert "clearance" in shown_contacts(viz.scene)
+    segment = viz.scene.transform(f"{CONTACTS_PATH}/clearance/segment")
+    assert segment is not None
+    assert np.allclose(segment[:3, 3], 0.5 * (found.p1 + found.p2), atol=1e-12)
+    overlay = viz.static_html().split('<ul id="spm-contacts"', 1)[1].split("</ul>", 1)[0]
+    assert f"{found.name}, {1000 * nearest:.2f} mm clear" in overlay
+    viz.display(np.radians(theta_deg))
+    assert "clearance" not in shown_contacts(viz.scene)
+
+
+def test_cli_show_clearance(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    target = tmp_path / "out.html"
+    argv = ["show", *map(str, STUDY_COLLIDING_DEG), "--html", str(target), "--json"]
+    status, out, err = run(capsys, *argv, "--clearance")
+    assert status == 0, err
+    record = json.loads(out)
+    robot = spm.build_robot()
+    viz = Visualizer(robot)
+    viz.display(np.radians(STUDY_COLLIDING_DEG))
+    distances = robot.distances(viz.q)
+    assert record["depth_mm"] == {
+        f"{a}-{b}": pytest.approx(-1000 * distances[(a, b)], abs=1e-3)
+        for a, b in robot.collisions(viz.q)
+    }
+    free = {pair: d for pair, d in distances.items() if d > 0}
+    assert record["clearance"]["mm"] == pytest.approx(1000 * min(free.values()), abs=1e-3)
+    page = target.read_text(encoding="utf-8")
+    assert 'class="spm-clearance"' in page and "mm deep" in page
+    status, out, err = run(capsys, *argv[:-1], "--json")
+    assert status == 0 and "clearance" not in json.loads(out)

@@ -22,7 +22,7 @@ import pytest
 import spm_pin as spm
 from spm_pin.model.geometry import LINK_NAMES
 from spm_pin.model.robot import SPMRobot
-from spm_pin.viz import LINK_COLORS, ROOT, Visualizer, link_path
+from spm_pin.viz import COLLIDING_COLOR, LINK_COLORS, ROOT, Visualizer, link_path
 from spm_pin.viz.browser import CHROMIUM_ARGS, find_chromium, screenshot
 
 pytestmark = pytest.mark.browser
@@ -238,7 +238,7 @@ def test_one_scene_node_per_link(live: tuple[Visualizer, Any]) -> None:
         assert free["isMesh"] and colliding["isMesh"]
         assert free["visible"] and not colliding["visible"]
         np.testing.assert_allclose(free["color"], LINK_COLORS[name][:3], atol=TOL["color"])
-        np.testing.assert_allclose(colliding["color"], [0.0, 0.0, 0.0], atol=TOL["color"])
+        np.testing.assert_allclose(colliding["color"], COLLIDING_COLOR[:3], atol=TOL["color"])
         obj = viz.scene.object(f"{link_path(name)}/free")
         assert obj is not None
         geometry = obj["geometries"][0]["data"]
@@ -483,3 +483,49 @@ def test_every_view_frames_the_mechanism(
     assert rows.min() > 0 and rows.max() < height - 1, f"{name}: cut at the top or bottom"
     assert cols.min() > 0 and cols.max() < width - 1, f"{name}: cut at a side"
     assert abs(0.5 * (rows.min() + rows.max()) - height / 2) < 0.1 * height
+
+
+# ------------------------------------------------------------------------- contacts
+#: Names of the visible children of the contacts node and the overlay's entries.
+_CONTACTS = f"""() => {{
+    const node = ({_FIND})(["meshcat", "spm", "contacts"]);
+    const shown = [];
+    if (node !== null) {{
+        for (const [name, child] of Object.entries(node.children)) {{
+            if (child.object.visible) shown.push(name);
+        }}
+    }}
+    const list = document.getElementById("spm-contacts");
+    const items = list === null ? [] : Array.from(list.querySelectorAll("li"));
+    return {{shown: shown, items: items.map((li) => [li.className, li.dataset.pair || null,
+                                                   li.dataset.depthMm || null, li.textContent])}};
+}}"""
+
+
+@pytest.mark.parametrize("theta_deg", [STUDY_COLLIDING_DEG, DEMO_DEG])
+def test_contact_markers_in_the_saved_page(
+    browser: Any, robot: SPMRobot, tmp_path: Path, theta_deg: list[float]
+) -> None:
+    """The study's colliding input: one visible marker node per colliding pair and its
+    depth in mm in ``#spm-contacts``; the safe input: no marker, "no collision"."""
+    viz = Visualizer(robot)
+    viz.display(np.radians(theta_deg))
+    truth = robot.collisions(viz.q)
+    depths = {f"{a}-{b}": -1000.0 * d for (a, b), d in robot.distances(viz.q).items()}
+    page, blocked = open_offline(browser, viz.save_html(tmp_path / "contacts.html"))
+    try:
+        state = page.evaluate(_CONTACTS)
+    finally:
+        page.close()
+    assert blocked == []
+    expected = sorted(f"{a}-{b}" for a, b in truth)
+    assert sorted(state["shown"]) == expected
+    contacts = [item for item in state["items"] if item[0] == "spm-contact"]
+    assert sorted(item[1] for item in contacts) == expected
+    for _, pair, depth_mm, text in contacts:
+        assert float(depth_mm) == pytest.approx(depths[pair], abs=1e-3)
+        assert text == f"{pair}: {depths[pair]:.1f} mm deep"
+    if not truth:
+        assert [item[0] for item in state["items"]] == ["spm-no-contact"]
+    else:
+        assert len(expected) >= 2

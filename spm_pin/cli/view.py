@@ -96,10 +96,10 @@ def _assembly_mode(theta_deg: Sequence[float], mode: str, design: SPMDesign) -> 
     return str(every.labels[int(mode)])
 
 
-def _display(viz: Any, theta_deg: Sequence[float], mode: str) -> Any:
+def _display(viz: Any, theta_deg: Sequence[float], mode: str, clearance: bool = False) -> Any:
     """viz.display at theta [deg] in --mode, with command-line hints on failure."""
     try:
-        return viz.display(np.radians(theta_deg), mode=mode)
+        return viz.display(np.radians(theta_deg), mode=mode, clearance=clearance)
     except UnreachableError as exc:
         raise _UsageError(
             f"theta = {list(theta_deg)} deg has no assembly in mode {mode!r}; 'spm fk "
@@ -112,7 +112,7 @@ def _run_show(args: argparse.Namespace) -> int:
     viz = _visualizer(args)
     theta_deg = [args.T1, args.T2, args.T3]
     mode = _assembly_mode(theta_deg, args.mode, viz.robot.design)
-    pairs = _display(viz, theta_deg, mode)
+    pairs = _display(viz, theta_deg, mode, args.clearance)
     viz.set_view(args.view)  # framed on the pose shown
     record: Record = {
         "design": viz.robot.design.name,
@@ -120,7 +120,13 @@ def _run_show(args: argparse.Namespace) -> int:
         "mode": viz.mode,
         "home": viz.home,
         "colliding": [list(pair) for pair in pairs],
+        "depth_mm": {c.name: round(1000.0 * c.depth, 4) for c in viz.contacts},
     }
+    if viz.clearance is not None:
+        record["clearance"] = {
+            "pair": list(viz.clearance.pair),
+            "mm": round(1000.0 * viz.clearance.distance, 4),
+        }
     if args.html is None:
         _serve_until_interrupted(viz, record, args.json)
         return 0
@@ -160,7 +166,8 @@ def add_parsers(commands: Any) -> None:
         "show",
         help="show the robot at input angles (live viewer or HTML file)",
         description="Show the robot at input angles T1 T2 T3 [deg] with meshcat, colliding "
-        "links in black: in a live viewer (open the printed url; Ctrl-C stops it) or, with "
+        "links in black with red markers where they touch (depths listed on a saved page): "
+        "in a live viewer (open the printed url; Ctrl-C stops it) or, with "
         "--html, in a self-contained HTML file. Needs the viz extra.",
     )
     _add_angle_arguments(show)
@@ -172,6 +179,11 @@ def add_parsers(commands: Any) -> None:
         help="assembly mode: nearest (default: the home mode where it exists, else the real "
         "mode nearest to it, named in the output), home, or a label or index of "
         "'spm fk T1 T2 T3 --all' such as +-+/+, -+-/-#2 or 3",
+    )
+    show.add_argument(
+        "--clearance",
+        action="store_true",
+        help="also mark the nearest non-colliding link pair's closest points and clearance",
     )
     _add_view_options(show)
     _add_json_option(show)

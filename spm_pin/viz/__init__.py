@@ -4,7 +4,8 @@ Needs the ``viz`` extra (``pip install "spm-pin[viz]"``, which brings meshcat);
 ``import spm_pin`` never imports this package.
 
 * :class:`Visualizer`: the robot with its legs in distinct colours, colliding links
-  in black, optional joint axes and platform frame, animations, HTML export.
+  in (shaded) black with their contacts marked (:mod:`spm_pin.viz.contacts`),
+  optional joint axes and platform frame, animations, HTML export.
 * :class:`MeshcatServer`: a meshcat server process that is always stopped.
 * :data:`VIEWS`: the camera's preset views (``iso``, ``top``, ``front``, ``side``),
   :mod:`spm_pin.viz.views`; the key of the colours, :mod:`spm_pin.viz.key`.

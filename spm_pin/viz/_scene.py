@@ -272,7 +272,7 @@ body {{ margin: 0; overflow: hidden; }}
 .spm-swatch {{ display: inline-block; width: 10px; height: 10px; margin-right: 3px;
   vertical-align: -1px; border: 1px solid rgba(0, 0, 0, 0.3); }}
 #spm-key .spm-swatch:last-of-type {{ margin-right: 6px; }}
-#spm-views {{ position: absolute; left: 8px; bottom: 40px; z-index: 10; }}
+#spm-views {{ position: absolute; right: 8px; bottom: 8px; z-index: 10; }}
 #spm-views button {{ font: 12px sans-serif; margin-right: 2px; }}
 </style>
 </head>

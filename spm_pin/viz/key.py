@@ -17,6 +17,7 @@ import html
 
 __all__ = [
     "COLLIDING_COLOR",
+    "COLLIDING_SHINE",
     "FRAME_COLORS",
     "JOINT_AXIS_COLORS",
     "LINK_COLORS",
@@ -38,8 +39,11 @@ LINK_COLORS: dict[str, Color] = {
     "distal_3": (0.70, 0.50, 0.82, 1.0),
     "platform": (0.86, 0.86, 0.82, 1.0),
 }
-#: Colour of a link that collides with another.
-COLLIDING_COLOR: Color = (0.0, 0.0, 0.0, 1.0)
+#: Colour of a link that collides with another: black, but not quite, so that with
+#: :data:`COLLIDING_SHINE` its faces still shade and its shape reads.
+COLLIDING_COLOR: Color = (0.12, 0.12, 0.12, 1.0)
+#: Material settings (three.js MeshPhongMaterial) of colliding links: highlights.
+COLLIDING_SHINE: dict[str, int] = {"specular": 0x666666, "shininess": 40}
 #: Colours of the joint-axis arrows, by axis family.
 JOINT_AXIS_COLORS: dict[str, Color] = {
     "u": (0.20, 0.20, 0.20, 1.0),

@@ -10,6 +10,8 @@ Scene layout (meshcat paths; the world frame is z-up, O at the origin):
   joint axes u_i, w_i, v_i (hidden unless asked for).
 * ``/meshcat/spm/overlays/platform_frame``: the platform frame's x, y, z axes
   (red, green, blue; hidden unless asked for).
+* ``/meshcat/spm/contacts``: red markers where links collide and, on request, the
+  nearest clearance (:mod:`spm_pin.viz.contacts`).
 
 The camera looks at O from a view of :mod:`spm_pin.viz.views` (default ``iso``:
 the three legs and the platform's face) and is framed so the robot fills most of the
@@ -40,7 +42,8 @@ from ..model.geometry import LINK_NAMES, link_meshes
 from ..model.robot import SPMRobot
 from ._clips import transform_clip, visibility_clip
 from ._scene import Scene
-from .key import COLLIDING_COLOR, JOINT_AXIS_COLORS, LINK_COLORS, key_html
+from .contacts import Contact, contacts, contacts_html, draw_contacts, nearest_clearance
+from .key import COLLIDING_COLOR, COLLIDING_SHINE, JOINT_AXIS_COLORS, LINK_COLORS, key_html
 from .key import FRAME_COLORS as _FRAME_COLORS
 from .server import MeshcatServer, ViewerError
 from .views import (
@@ -96,8 +99,8 @@ def _hex(color: Color) -> int:
     return (r << 16) | (g << 8) | b
 
 
-def _material(color: Color) -> mg.MeshPhongMaterial:
-    return mg.MeshPhongMaterial(color=_hex(color), opacity=float(color[3]))
+def _material(color: Color, **extra: Any) -> mg.MeshPhongMaterial:
+    return mg.MeshPhongMaterial(color=_hex(color), opacity=float(color[3]), **extra)
 
 
 def _rotation_y_to(direction: FloatArray) -> FloatArray:
@@ -223,6 +226,8 @@ class Visualizer:
         self._mode: str | None = None
         self._home = False
         self._caption: str | None = None
+        self._contacts: list[Contact] = []
+        self._clearance: Contact | None = None
         meshes = link_meshes(robot.design)
         # vertices split along sharp edges, so the viewer shades flat faces flat
         self._meshes = {name: mesh.smooth_shaded for name, mesh in meshes.items()}
@@ -256,7 +261,9 @@ class Visualizer:
             mesh = self._meshes[name]
             for child, color in (("free", LINK_COLORS[name]), ("colliding", COLLIDING_COLOR)):
                 geometry = mg.TriangularMeshGeometry(mesh.vertices, mesh.faces)
-                scene.set_object(f"{link_path(name)}/{child}", mg.Mesh(geometry, _material(color)))
+                extra = COLLIDING_SHINE if child == "colliding" else {}
+                material = _material(color, **extra)
+                scene.set_object(f"{link_path(name)}/{child}", mg.Mesh(geometry, material))
             scene.set_property(f"{link_path(name)}/free", "visible", True)
             scene.set_property(f"{link_path(name)}/colliding", "visible", False)
         for arrow in self._arrows:
@@ -456,10 +463,13 @@ class Visualizer:
         self._q = q.copy()  # q may be the caller's array (or a row of an animation's)
         return pairs
 
-    def display(self, x: npt.ArrayLike, *, mode: str = "nearest") -> list[LinkPair]:
+    def display(
+        self, x: npt.ArrayLike, *, mode: str = "nearest", clearance: bool = False
+    ) -> list[LinkPair]:
         """Show the robot at input angles theta or at a joint configuration q.
 
-        Links that collide turn black, and back to their colour when free. Stops an
+        Links that collide turn black, and back to their colour when free; red
+        markers show each colliding pair's contact (:attr:`contacts`). Stops an
         animation if one is loaded. :attr:`mode` names the assembly mode shown, and
         the saved page (:meth:`save_html`) says it in its caption.
 
@@ -470,6 +480,8 @@ class Visualizer:
                 :func:`~spm_pin.select_assembly`: the home mode where it exists, else
                 the real mode nearest to it), ``"home"``, or a label of
                 :func:`~spm_pin.forward_kinematics_all` such as ``"+-+/+"``.
+            clearance: Also join the closest points of the nearest non-colliding
+                link pair (:attr:`clearance`; :mod:`spm_pin.viz.contacts`).
 
         Returns:
             The colliding link pairs (``robot.collisions``), empty when none collide
@@ -484,6 +496,9 @@ class Visualizer:
             self.scene.set_animation([], play=False, repetitions=1)
             self._animated = False
         pairs = self._show(q)
+        self._contacts = contacts(self.robot, q, pairs) if pairs else []
+        self._clearance = nearest_clearance(self.robot, q) if clearance else None
+        draw_contacts(self.scene, self._contacts, self._clearance)
         self._extent_qs = [self._q]
         self._mode, self._home = label, home
         self._caption = None if label is None else _pose_caption(self.robot, q, label, home, pairs)
@@ -505,6 +520,16 @@ class Visualizer:
         """The configuration shown (9,) [rad] (a copy)."""
         q: FloatArray = self._q.copy()
         return q
+
+    @property
+    def contacts(self) -> list[Contact]:
+        """Witness points and depth of each colliding pair of the pose shown."""
+        return list(self._contacts)
+
+    @property
+    def clearance(self) -> Contact | None:
+        """The nearest non-colliding pair, when :meth:`display` was asked for it."""
+        return self._clearance
 
     @property
     def colliding_links(self) -> frozenset[str]:
@@ -623,6 +648,8 @@ class Visualizer:
         self._animated = True
         self._mode, self._home = None, False
         self._caption = None
+        self._contacts, self._clearance = [], None
+        draw_contacts(self.scene, [], None)
         return RobotAnimation(q=qs, times=times, collisions=collisions, modes=modes)
 
     # ------------------------------------------------------------------ the server
@@ -716,10 +743,14 @@ class Visualizer:
         return self.scene.static_html(
             title or f"spm-pin: {self.robot.design.name}",
             caption if caption is not None else self._caption,
-            key=key_html(**self._overlays_shown),
+            key=key_html(**self._overlays_shown) + self._contacts_html(),
             views=views,
             view=self._view,
         )
+
+    def _contacts_html(self) -> str:
+        checked = self.check_collisions and not self._animated
+        return contacts_html(self._contacts, self._clearance, checked)
 
     def save_html(
         self, path: str | Path, title: str | None = None, caption: str | None = None
