@@ -1,4 +1,5 @@
-"""The colours of the SPM's scene and the key that names them on a saved page.
+"""The colours of the SPM's scene, their three.js materials, and the key that names
+them on a saved page.
 
 Each leg has its own hue (the proximal link darker than the distal one), the base and
 the platform are neutral, colliding links black; the joint-axis arrows are coloured
@@ -14,6 +15,9 @@ with swatches of its proximal and distal colours), one for colliding links
 from __future__ import annotations
 
 import html
+from typing import Any
+
+import meshcat.geometry as mg
 
 __all__ = [
     "COLLIDING_COLOR",
@@ -21,8 +25,11 @@ __all__ = [
     "FRAME_COLORS",
     "JOINT_AXIS_COLORS",
     "LINK_COLORS",
+    "Color",
     "css_color",
+    "hex_color",
     "key_html",
+    "material",
 ]
 
 Color = tuple[float, float, float, float]
@@ -69,6 +76,18 @@ def css_color(color: Color) -> str:
     """``#rrggbb`` of an RGBA colour (0..1)."""
     r, g, b = (round(255 * min(max(c, 0.0), 1.0)) for c in color[:3])
     return f"#{r:02x}{g:02x}{b:02x}"
+
+
+def hex_color(color: Color) -> int:
+    """The colour as the integer three.js takes (0xRRGGBB)."""
+    r, g, b = (round(255 * min(max(c, 0.0), 1.0)) for c in color[:3])
+    return (r << 16) | (g << 8) | b
+
+
+def material(color: Color, **extra: Any) -> mg.MeshPhongMaterial:
+    """A three.js MeshPhongMaterial of an RGBA colour (0..1), with ``extra`` settings
+    (e.g. :data:`COLLIDING_SHINE`)."""
+    return mg.MeshPhongMaterial(color=hex_color(color), opacity=float(color[3]), **extra)
 
 
 def _swatch(color: Color) -> str:

@@ -43,9 +43,11 @@ __all__ = [
     "VIEWS",
     "CameraFit",
     "View",
+    "check_camera",
     "check_view",
     "choose_iso_direction",
     "fit_camera",
+    "is_real",
     "view_direction",
 ]
 
@@ -111,6 +113,38 @@ def check_view(name: Any) -> View:
             f"view must be one of {', '.join(VIEWS)}, got {name!r}", argument="view", value=name
         )
     return VIEWS[name]
+
+
+def is_real(value: Any) -> bool:
+    """``value`` is a finite real number (not a bool)."""
+    return (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, (bool, np.bool_))
+        and math.isfinite(float(value))
+    )
+
+
+def check_camera(azimuth: Any, elevation: Any, fill: Any) -> tuple[float, float, float]:
+    """A camera direction and fill, checked: ``(azimuth, elevation, fill)`` as floats.
+
+    Raises:
+        InputError: one is not a finite number, the elevation is not in
+            (-pi/2, pi/2) [rad] or the fill not in (0, 1].
+    """
+    for name, value in (("azimuth", azimuth), ("elevation", elevation), ("fill", fill)):
+        if not is_real(value):
+            raise InputError(
+                f"{name} must be a finite number, got {value!r}", argument=name, value=value
+            )
+    if not abs(elevation) < math.pi / 2:
+        raise InputError(
+            f"elevation must lie in (-pi/2, pi/2) [rad], got {elevation!r}",
+            argument="elevation",
+            value=elevation,
+        )
+    if not 0 < fill <= 1:
+        raise InputError(f"fill must lie in (0, 1], got {fill!r}", argument="fill", value=fill)
+    return float(azimuth), float(elevation), float(fill)
 
 
 def view_direction(azimuth: float, elevation: float) -> FloatArray:

@@ -7,7 +7,7 @@ Scene layout (meshcat paths; the world frame is z-up, O at the origin):
   the link mesh: ``free`` in the link's colour and ``colliding`` in black; exactly
   one of them is visible.
 * ``/meshcat/spm/overlays/joint_axes/<u_i|w_i|v_i>``: arrows from O along the
-  joint axes u_i, w_i, v_i (hidden unless asked for).
+  joint axes u_i, w_i, v_i (hidden unless asked for; :mod:`spm_pin.viz.arrows`).
 * ``/meshcat/spm/overlays/platform_frame``: the platform frame's x, y, z axes
   (red, green, blue; hidden unless asked for).
 * ``/meshcat/spm/contacts``: red markers where links collide and, on request, the
@@ -25,34 +25,41 @@ the pose it shows, has buttons for the preset views and a key of the colours
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from types import TracebackType
-from typing import Any
 
 import meshcat.geometry as mg
 import numpy as np
 import numpy.typing as npt
 
 from ..collision import build_robot, checker_of
-from ..errors import InputError, UnreachableError
-from ..kinematics import track
-from ..kinematics.assembly import home_mode_label, select_assembly
+from ..errors import InputError
 from ..model.geometry import LINK_NAMES, link_meshes
 from ..model.robot import SPMRobot
 from ._clips import transform_clip, visibility_clip
 from ._scene import Scene
+from .arrows import OVERLAYS_PATH, draw_arrows, overlay_arrows, overlay_transforms
+from .caption import pose_caption
 from .contacts import Contact, contacts, contacts_html, draw_contacts, nearest_clearance
-from .key import COLLIDING_COLOR, COLLIDING_SHINE, JOINT_AXIS_COLORS, LINK_COLORS, key_html
-from .key import FRAME_COLORS as _FRAME_COLORS
+from .key import (
+    COLLIDING_COLOR,
+    COLLIDING_SHINE,
+    JOINT_AXIS_COLORS,
+    LINK_COLORS,
+    key_html,
+    material,
+)
+from .poses import configuration, path_configurations
 from .server import MeshcatServer, ViewerError
 from .views import (
     CAMERA_PATH,
     DEFAULT_VIEW,
     VIEWS,
     CameraFit,
+    check_camera,
     check_view,
     fit_camera,
+    is_real,
     view_direction,
 )
 
@@ -69,7 +76,6 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-Color = tuple[float, float, float, float]
 LinkPair = tuple[str, str]
 
 #: Scene path of the robot.
@@ -82,56 +88,12 @@ DEFAULT_ELEVATION = VIEWS[DEFAULT_VIEW].elevation
 _FILL = 0.8  # default share of the view the robot takes
 _EXTENT_SAMPLES = 13  # poses of an animation the camera frames
 
-_ARROW_RADIUS = 0.0015  # [m]
-_HEAD_LENGTH = 0.012  # [m]
-_HEAD_RADIUS = 0.004  # [m]
 _GRID_SCALE = 0.05  # meshcat's 20 m grid with 0.5 m cells -> 1 m with 25 mm cells
 
 
 def link_path(link: str) -> str:
     """Scene path of a link's node, ``/meshcat/spm/links/<link>``."""
     return f"{ROOT}/links/{link}"
-
-
-def _hex(color: Color) -> int:
-    """The colour as the integer three.js takes (0xRRGGBB)."""
-    r, g, b = (round(255 * min(max(c, 0.0), 1.0)) for c in color[:3])
-    return (r << 16) | (g << 8) | b
-
-
-def _material(color: Color, **extra: Any) -> mg.MeshPhongMaterial:
-    return mg.MeshPhongMaterial(color=_hex(color), opacity=float(color[3]), **extra)
-
-
-def _rotation_y_to(direction: FloatArray) -> FloatArray:
-    """A rotation taking +y (meshcat's cylinder axis) to the unit vector ``direction``."""
-    y = direction / np.linalg.norm(direction)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(y[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-    x = np.cross(y, helper)
-    x /= np.linalg.norm(x)
-    z = np.cross(x, y)
-    result: FloatArray = np.stack([x, y, z], axis=1)
-    return result
-
-
-def _transform(rotation: FloatArray, translation: FloatArray) -> FloatArray:
-    T = np.eye(4)
-    T[:3, :3] = rotation
-    T[:3, 3] = translation
-    return T
-
-
-@dataclasses.dataclass(frozen=True)
-class _Arrow:
-    """An overlay arrow: drawn at ``path`` along ``direction`` (at home) from O; it
-    moves with the scene node ``node``, which belongs to the overlay ``overlay``."""
-
-    overlay: str
-    node: str
-    path: str
-    direction: FloatArray
-    length: float
-    color: Color
 
 
 @dataclasses.dataclass(frozen=True)
@@ -210,7 +172,7 @@ class Visualizer:
                 argument="robot",
                 value=robot,
             )
-        if not _is_real(collision_margin) or collision_margin < 0:
+        if not is_real(collision_margin) or collision_margin < 0:
             raise InputError(
                 f"collision_margin must be a finite distance >= 0 [m], got {collision_margin!r}",
                 argument="collision_margin",
@@ -231,7 +193,8 @@ class Visualizer:
         meshes = link_meshes(robot.design)
         # vertices split along sharp edges, so the viewer shades flat faces flat
         self._meshes = {name: mesh.smooth_shaded for name, mesh in meshes.items()}
-        self._arrows = self._overlay_arrows()
+        moving = [mesh.vertices for name, mesh in self._meshes.items() if name != "base"]
+        self._arrows = overlay_arrows(robot.design, moving)
         self._overlays_shown = {"joint_axes": False, "platform_frame": False}
         self._build()
         self._q = np.zeros(robot.model.nq)
@@ -262,37 +225,11 @@ class Visualizer:
             for child, color in (("free", LINK_COLORS[name]), ("colliding", COLLIDING_COLOR)):
                 geometry = mg.TriangularMeshGeometry(mesh.vertices, mesh.faces)
                 extra = COLLIDING_SHINE if child == "colliding" else {}
-                material = _material(color, **extra)
-                scene.set_object(f"{link_path(name)}/{child}", mg.Mesh(geometry, material))
+                mesh_material = material(color, **extra)
+                scene.set_object(f"{link_path(name)}/{child}", mg.Mesh(geometry, mesh_material))
             scene.set_property(f"{link_path(name)}/free", "visible", True)
             scene.set_property(f"{link_path(name)}/colliding", "visible", False)
-        for arrow in self._arrows:
-            shaft = mg.Cylinder(arrow.length - _HEAD_LENGTH, _ARROW_RADIUS)
-            head = mg.Cylinder(_HEAD_LENGTH, radiusTop=0.0, radiusBottom=_HEAD_RADIUS)
-            rotation = _rotation_y_to(arrow.direction)
-            middle = 0.5 * (arrow.length - _HEAD_LENGTH) * arrow.direction
-            tip = (arrow.length - 0.5 * _HEAD_LENGTH) * arrow.direction
-            for part, geometry, position in (("shaft", shaft, middle), ("head", head, tip)):
-                scene.set_object(f"{arrow.path}/{part}", mg.Mesh(geometry, _material(arrow.color)))
-                scene.set_transform(f"{arrow.path}/{part}", _transform(rotation, position))
-
-    def _overlay_arrows(self) -> list[_Arrow]:
-        """The arrows of the joint axes and of the platform frame."""
-        design = self.robot.design
-        moving = [mesh for name, mesh in self._meshes.items() if name != "base"]
-        length = 1.1 * max(float(np.linalg.norm(mesh.vertices, axis=1).max()) for mesh in moving)
-        arrows = []
-        for letter, axes in (("u", design.u), ("w", design.w0), ("v", design.v0)):
-            for i in range(3):
-                node = f"{ROOT}/overlays/joint_axes/{letter}_{i + 1}"
-                direction = np.array(axes[i], dtype=float)
-                color = JOINT_AXIS_COLORS[letter]
-                arrows.append(_Arrow("joint_axes", node, node, direction, length, color))
-        frame = f"{ROOT}/overlays/platform_frame"
-        for i, (letter, color) in enumerate(_FRAME_COLORS.items()):
-            path = f"{frame}/{letter}"
-            arrows.append(_Arrow("platform_frame", frame, path, np.eye(3)[i], 0.8 * length, color))
-        return arrows
+        draw_arrows(scene, self._arrows)
 
     def set_overlays(
         self, *, joint_axes: bool | None = None, platform_frame: bool | None = None
@@ -306,7 +243,7 @@ class Visualizer:
         """
         for name, value in (("joint_axes", joint_axes), ("platform_frame", platform_frame)):
             if value is not None:
-                self.scene.set_property(f"{ROOT}/overlays/{name}", "visible", bool(value))
+                self.scene.set_property(f"{OVERLAYS_PATH}/{name}", "visible", bool(value))
                 self._overlays_shown[name] = bool(value)
 
     def _extent_points(self) -> FloatArray:
@@ -370,78 +307,17 @@ class Visualizer:
         Raises:
             InputError: an argument out of range.
         """
-        for name, value in (("azimuth", azimuth), ("elevation", elevation), ("fill", fill)):
-            if not _is_real(value):
-                raise InputError(
-                    f"{name} must be a finite number, got {value!r}", argument=name, value=value
-                )
-        if not abs(elevation) < math.pi / 2:
-            raise InputError(
-                f"elevation must lie in (-pi/2, pi/2) [rad], got {elevation!r}",
-                argument="elevation",
-                value=elevation,
-            )
-        if not 0 < fill <= 1:
-            raise InputError(f"fill must lie in (0, 1], got {fill!r}", argument="fill", value=fill)
-        self._camera = (float(azimuth), float(elevation), float(fill))
+        self._camera = check_camera(azimuth, elevation, fill)
         self._view = None
         for key, value in self._fit(*self._camera).properties():
             self.scene.set_property(CAMERA_PATH, key, value)
 
     # ------------------------------------------------------------------------ poses
-    def _configuration(self, x: npt.ArrayLike, mode: str) -> tuple[FloatArray, str | None, bool]:
-        """q of ``x``, the label of its assembly mode (None for a given q) and whether
-        that is the home mode."""
-        try:
-            array = np.asarray(x, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(
-                f"x must be input angles theta (3,) or a configuration q (9,) [rad], got {x!r}",
-                argument="x",
-                value=x,
-            ) from exc
-        if array.shape == (3,):
-            if mode == "nearest":
-                chosen = select_assembly(array, self.robot.design)
-                if not bool(chosen.exists):
-                    raise UnreachableError(
-                        f"theta = {np.degrees(array).round(6).tolist()} deg has no real "
-                        "assembly mode: the platform cannot be placed",
-                        value=array,
-                    )
-                q = self.robot._closed_configuration(chosen.theta, chosen.R)
-                return q, str(chosen.label), bool(chosen.home)
-            q = self.robot.configuration(array, mode)
-            if mode == "home":
-                return q, home_mode_label(self.robot.design), True
-            return q, mode, False
-        if array.shape == (self.robot.model.nq,):
-            if mode not in ("home", "nearest"):
-                raise InputError(
-                    f"mode applies to input angles theta (3,), not to a configuration q; "
-                    f"got mode={mode!r} with q",
-                    argument="mode",
-                    value=mode,
-                )
-            if not np.all(np.isfinite(array)):
-                raise InputError("q must be finite, got NaN or inf", argument="x", value=x)
-            return array, None, False
-        raise InputError(
-            f"x must be input angles theta (3,) or a configuration q (9,) [rad], "
-            f"got shape {array.shape}",
-            argument="x",
-            value=x,
-        )
-
     def _pose_transforms(self, q: FloatArray) -> dict[str, FloatArray]:
         """Scene path -> transform (4, 4) of every moving node at q."""
         placements = {name: se3.homogeneous for name, se3 in self.robot.placements(q).items()}
         transforms = {link_path(name): placements[name] for name in LINK_NAMES}
-        for i in range(1, 4):
-            transforms[f"{ROOT}/overlays/joint_axes/w_{i}"] = placements[f"proximal_{i}"]
-            transforms[f"{ROOT}/overlays/joint_axes/v_{i}"] = placements["platform"]
-        transforms[f"{ROOT}/overlays/platform_frame"] = placements["platform"]
-        return transforms
+        return transforms | overlay_transforms(placements)
 
     def _collisions(self, q: FloatArray) -> list[LinkPair]:
         if not self.check_collisions:
@@ -491,7 +367,7 @@ class Visualizer:
             InputError: x is neither (3,) nor (9,), not finite, or a bad mode.
             UnreachableError: no assembly of theta in that mode.
         """
-        q, label, home = self._configuration(x, mode)
+        q, label, home = configuration(self.robot, x, mode)
         if self._animated:
             self.scene.set_animation([], play=False, repetitions=1)
             self._animated = False
@@ -501,7 +377,7 @@ class Visualizer:
         draw_contacts(self.scene, self._contacts, self._clearance)
         self._extent_qs = [self._q]
         self._mode, self._home = label, home
-        self._caption = None if label is None else _pose_caption(self.robot, q, label, home, pairs)
+        self._caption = None if label is None else pose_caption(self.robot, q, label, home, pairs)
         return pairs
 
     @property
@@ -537,55 +413,6 @@ class Visualizer:
         return self._colliding
 
     # ------------------------------------------------------------------- animations
-    def _path(
-        self, path: npt.ArrayLike, start: npt.ArrayLike | None
-    ) -> tuple[FloatArray, list[str | None]]:
-        try:
-            array = np.asarray(path, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(
-                f"path must be numbers of shape (N, 3) or (N, 9) [rad], got {path!r}",
-                argument="path",
-                value=path,
-            ) from exc
-        nq = self.robot.model.nq
-        if array.ndim != 2 or array.shape[0] < 1 or array.shape[1] not in (3, nq):
-            raise InputError(
-                f"path must have shape (N, 3) (input angles) or (N, {nq}) (configurations) "
-                f"with N >= 1 [rad], got shape {array.shape}",
-                argument="path",
-                value=path,
-            )
-        if not np.all(np.isfinite(array)):
-            raise InputError("path must be finite, got NaN or inf", argument="path", value=path)
-        if array.shape[1] == nq:
-            if start is not None:
-                raise InputError(
-                    "start applies to a path of input angles (N, 3), not to configurations",
-                    argument="start",
-                    value=start,
-                )
-            return array, [None] * array.shape[0]
-        if start is None:  # the library's rule at the first sample
-            first = select_assembly(array[0], self.robot.design)
-            if bool(first.exists) and not bool(first.home):
-                start = first.R
-        followed = track(array, self.robot.design, start=start)
-        if np.any(followed.lost):
-            k = int(np.argmax(followed.lost))
-            raise UnreachableError(
-                f"the path loses its assembly mode at sample {k}, theta = "
-                f"{np.degrees(array[k]).round(6).tolist()} deg (the edge of the workspace)",
-                value=array[k],
-            )
-        qs = np.stack(
-            [
-                self.robot.configuration(theta, followed.labels[k], reference=followed.R[k])
-                for k, theta in enumerate(array)
-            ]
-        )
-        return qs, list(followed.labels)
-
     def animate(
         self,
         path: npt.ArrayLike,
@@ -620,7 +447,7 @@ class Visualizer:
             InputError: bad shapes or values.
             UnreachableError: the path leaves the workspace of the followed mode.
         """
-        if not _is_real(dt) or dt <= 0:
+        if not is_real(dt) or dt <= 0:
             raise InputError(f"dt must be a positive time [s], got {dt!r}", argument="dt", value=dt)
         if isinstance(repetitions, bool) or not isinstance(repetitions, int) or repetitions < 1:
             raise InputError(
@@ -628,7 +455,7 @@ class Visualizer:
                 argument="repetitions",
                 value=repetitions,
             )
-        qs, modes = self._path(path, start)
+        qs, modes = path_configurations(self.robot, path, start)
         times: FloatArray = float(dt) * np.arange(qs.shape[0], dtype=float)
         poses = [self._pose_transforms(q) for q in qs]
         collisions = [self._collisions(q) for q in qs]
@@ -768,29 +595,3 @@ class Visualizer:
         target = Path(path)
         target.write_text(self.static_html(title, caption), encoding="utf-8")
         return target
-
-
-def _pose_caption(
-    robot: SPMRobot, q: FloatArray, label: str, home: bool, pairs: list[LinkPair]
-) -> str:
-    """One line for a page: the design, the input angles, the mode and the collisions."""
-    theta_deg = np.degrees(q[robot.actuated_q_idx])
-    angles = ", ".join(f"{value:g}" for value in np.round(theta_deg, 3))
-    kind = "home assembly mode" if home else "assembly mode"
-    text = f"{robot.design.name}: theta = [{angles}] deg, {kind} {label}"
-    if not home:
-        text += " (no home-mode assembly; the real mode nearest to it)"
-    if pairs:
-        links = ", ".join(f"{a}-{b}" for a, b in pairs)
-        text += f"; colliding (black): {links}"
-    else:
-        text += "; no collision"
-    return text
-
-
-def _is_real(value: Any) -> bool:
-    return (
-        isinstance(value, (int, float, np.integer, np.floating))
-        and not isinstance(value, (bool, np.bool_))
-        and math.isfinite(float(value))
-    )
