@@ -352,12 +352,14 @@ class KinematicBackend:
         previous: FloatArray | None = None,
         before_previous: FloatArray | None = None,
         period: float | None = None,
+        verdict: Verdict | None = None,
     ) -> GoalReport:
         from ..collision import check_input
 
-        verdict: Verdict = self.guard.check(
-            theta, previous=previous, before_previous=before_previous, period=period
-        )
+        if verdict is None:
+            verdict = self.guard.check(
+                theta, previous=previous, before_previous=before_previous, period=period
+            )
         limits = self.guard.limits
         report = check_input(theta, self.robot, margin=limits.collision_margin)
         pairs = list(verdict.collisions)
@@ -396,6 +398,21 @@ class KinematicBackend:
             min_distance=report.min_distance,
             collision_margin=limits.collision_margin,
         )
+
+    def _collision_free(self, theta: FloatArray) -> bool:
+        """No link pair collides (guard's margin) in the assembly mode that
+        :func:`~spm_pin.collision.check_input` checks: its boolean verdict, without
+        the distances (the same q, plan and pairs)."""
+        from ..collision import checker_of
+        from ..kinematics import select_assembly
+
+        chosen = select_assembly(theta, self.design)
+        if not bool(chosen.exists):
+            return False  # the full report decides
+        checker = checker_of(self.robot)
+        q = self.robot._closed_configuration(theta, chosen.R)
+        plan = checker._plan(self.guard.limits.collision_margin)
+        return not checker._check(q, plan, True)
 
     def _compute_state(self, theta: FloatArray) -> TwinState:
         from ..collision import check_input
@@ -474,7 +491,10 @@ class KinematicBackend:
         before = None if before_previous is None else _theta(before_previous)
         last = None if previous is None else _theta(previous)
         with self._lock:
-            self._report(goal, last, before, period).require()
+            verdict = self.guard.check(goal, previous=last, before_previous=before, period=period)
+            if not (verdict.safe and self._collision_free(goal)):
+                # Only a refused goal pays for the full report (it names the pairs).
+                self._report(goal, last, before, period, verdict).require()
             self._state = self._compute_state(goal)
             self._theta = goal
             return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
