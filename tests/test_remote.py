@@ -30,6 +30,12 @@ pytest.importorskip("uvicorn")
 httpx = pytest.importorskip("httpx")
 
 import uvicorn  # noqa: E402
+from _remote_truth import (  # noqa: E402
+    SAFE_DEG,
+    STUDY_COLLISION_DEG,
+    STUDY_COLLISION_PAIRS,
+    TOL,
+)
 
 import spm_pin as spm  # noqa: E402
 from spm_pin.collision import LINK_PAIRS  # noqa: E402
@@ -51,21 +57,6 @@ from spm_pin.rotations import (  # noqa: E402
     rpy_from_matrix,
 )
 
-#: Tolerances, by what is compared.
-TOL = {
-    "same_numbers": 1e-12,  # the server and this process compute the same floats
-    "orientation": 1e-9,  # the reached orientation against the asked one
-    "angles_deg": 1e-9,  # angles sent and read back [deg]
-}
-#: The published study's input with a link collision [deg] and its colliding pairs.
-STUDY_COLLISION_DEG = [60.0, 90.0, 220.0]
-STUDY_COLLISION_PAIRS = {
-    ("proximal_2", "proximal_3"),
-    ("proximal_2", "distal_3"),
-    ("proximal_3", "distal_2"),
-    ("distal_2", "distal_3"),
-}
-SAFE_DEG = [60.0, 90.0, 120.0]
 TOKEN = "test-token-0123456789abcdef"
 STATE_KEYS = {
     "theta_deg",
@@ -244,6 +235,33 @@ def test_check_agrees_with_the_guard(
         assert verdict["singularity_margin"] == pytest.approx(truth.singularity_margin, abs=1e-12)
     else:
         assert verdict["singularity_margin"] is None
+
+
+def test_move_accepts_exactly_the_goals_the_full_check_calls_safe(robot: spm.SPMRobot) -> None:
+    """A move decides with the cheap collision test (no distances); it must accept
+    exactly the goals that the guard plus the full `spm collide` report call safe."""
+    from spm_pin.collision import check_input
+    from spm_pin.errors import UnsafeCommandError
+
+    twin = KinematicBackend(robot=robot)
+    guard = SafetyGuard(robot)
+    margin = guard.limits.collision_margin
+    rng = np.random.default_rng(7)
+    goals = np.radians(SAFE_DEG) + rng.uniform(-0.6, 0.6, size=(30, 3))
+    goals = np.vstack([goals, np.radians([STUDY_COLLISION_DEG, [0.0, 60.0, 120.0]])])
+    accepted = []
+    for goal in goals:
+        truth = guard.check(goal).safe and not check_input(goal, robot, margin=margin).collision
+        assert twin.check(goal).safe == truth
+        try:
+            twin.move(goal)
+        except UnsafeCommandError:
+            moved = False
+        else:
+            moved = True
+        assert moved == truth, np.degrees(goal)
+        accepted.append(moved)
+    assert any(accepted) and not all(accepted)  # both kinds of goal were tried
 
 
 def test_check_an_orientation(client: httpx.Client) -> None:

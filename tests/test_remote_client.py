@@ -22,6 +22,13 @@ pytest.importorskip("uvicorn")
 httpx = pytest.importorskip("httpx")
 pytest.importorskip("websockets")
 
+from _remote_truth import (  # noqa: E402
+    SAFE_DEG,
+    STUDY_COLLISION_DEG,
+    STUDY_COLLISION_PAIRS,
+    TOL,
+)
+
 import spm_pin as spm  # noqa: E402
 from spm_pin.errors import InputError, SPMError, UnreachableError, UnsafeCommandError  # noqa: E402
 from spm_pin.remote import (  # noqa: E402
@@ -36,21 +43,6 @@ from spm_pin.remote import (  # noqa: E402
 )
 from spm_pin.rotations import matrix_from_quaternion, matrix_from_rpy  # noqa: E402
 
-#: Tolerances, by what is compared.
-TOL = {
-    "same_numbers": 1e-12,  # the server and this process compute the same floats
-    "orientation": 1e-9,  # the reached orientation against the asked one
-    "angles_deg": 1e-9,  # angles sent and read back [deg]
-}
-#: The published study's input with a link collision [deg] and its colliding pairs.
-STUDY_COLLISION_DEG = [60.0, 90.0, 220.0]
-STUDY_COLLISION_PAIRS = {
-    ("proximal_2", "proximal_3"),
-    ("proximal_2", "distal_3"),
-    ("proximal_3", "distal_2"),
-    ("distal_2", "distal_3"),
-}
-SAFE_DEG = [60.0, 90.0, 120.0]
 TOKEN = "client-token-0123456789abcdef"
 #: The streaming client's deadline in these tests [s].
 DEADLINE = 0.5

@@ -27,6 +27,7 @@ pytest.importorskip("uvicorn")
 httpx = pytest.importorskip("httpx")
 pytest.importorskip("websockets")
 
+from _remote_truth import STUDY_COLLISION_DEG  # noqa: E402
 from websockets.exceptions import ConnectionClosed  # noqa: E402
 from websockets.sync.client import ClientConnection, connect  # noqa: E402
 
@@ -41,8 +42,6 @@ TOL = {
 DEADLINE = 0.3
 #: Seconds to wait for one answer of the server.
 ANSWER_TIMEOUT = 10.0
-#: The published study's input with a link collision [deg].
-STUDY_COLLISION_DEG = [60.0, 90.0, 220.0]
 TOKEN = "stream-token-0123456789abcdef"
 STATE_KEYS = {"type", "seq", "dropped", "lease", "theta_deg", "R", "reachable", "pairs", "stops"}
 

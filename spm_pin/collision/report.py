@@ -63,6 +63,7 @@ def check_input(
     robot: SPMRobot | None = None,
     *,
     margin: float = 0.0,
+    distances: bool = True,
 ) -> CollisionReport:
     """Self-collision at input angles, even where the home assembly mode does not exist.
 
@@ -75,6 +76,9 @@ def check_input(
         theta: Input angles [rad], (3,).
         robot: The robot (default: the prototype).
         margin: Safety margin [m].
+        distances: Also compute the exact distance of every checked pair. Without
+            them (a yes/no question, much cheaper) the report's ``distances`` are
+            empty and its ``min_distance`` is ``inf``; ``pairs`` are the same.
 
     Raises:
         InputError: bad ``theta``, ``robot`` or ``margin``.
@@ -111,7 +115,7 @@ def check_input(
         q[robot.actuated_q_idx] = angles
     found = checker._check(q, checker._plan(margin), False)
     pairs = tuple(p for p in found if p in checked)
-    distances = checker._distances_q(q, list(checked), True, math.inf)
+    exact = checker._distances_q(q, list(checked), True, math.inf) if distances else {}
     return CollisionReport(
         theta=angles,
         reachable=bool(chosen.home),
@@ -119,6 +123,6 @@ def check_input(
         home=bool(chosen.home),
         checked_pairs=tuple(checked),
         pairs=pairs,
-        distances=distances,
+        distances=exact,
         margin=margin,
     )

@@ -399,21 +399,6 @@ class KinematicBackend:
             collision_margin=limits.collision_margin,
         )
 
-    def _collision_free(self, theta: FloatArray) -> bool:
-        """No link pair collides (guard's margin) in the assembly mode that
-        :func:`~spm_pin.collision.check_input` checks: its boolean verdict, without
-        the distances (the same q, plan and pairs)."""
-        from ..collision import checker_of
-        from ..kinematics import select_assembly
-
-        chosen = select_assembly(theta, self.design)
-        if not bool(chosen.exists):
-            return False  # the full report decides
-        checker = checker_of(self.robot)
-        q = self.robot._closed_configuration(theta, chosen.R)
-        plan = checker._plan(self.guard.limits.collision_margin)
-        return not checker._check(q, plan, True)
-
     def _compute_state(self, theta: FloatArray) -> TwinState:
         from ..collision import check_input
 
@@ -487,12 +472,19 @@ class KinematicBackend:
             GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
                 ``report`` says why); the state is unchanged.
         """
+        from ..collision import check_input
+
         goal = _theta(theta)
         before = None if before_previous is None else _theta(before_previous)
         last = None if previous is None else _theta(previous)
         with self._lock:
             verdict = self.guard.check(goal, previous=last, before_previous=before, period=period)
-            if not (verdict.safe and self._collision_free(goal)):
+            if (
+                not verdict.safe
+                or check_input(
+                    goal, self.robot, margin=self.guard.limits.collision_margin, distances=False
+                ).collision
+            ):
                 # Only a refused goal pays for the full report (it names the pairs).
                 self._report(goal, last, before, period, verdict).require()
             self._state = self._compute_state(goal)

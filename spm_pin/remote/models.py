@@ -9,7 +9,7 @@ strings or booleans in place of numbers and lists of the wrong length are refuse
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, TypeAdapter, model_validator
@@ -50,6 +50,23 @@ class _Request(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
 
 
+#: The forms a goal may take (a body gives exactly one of them).
+_GOAL_FORMS = ("theta_deg", "rpy_deg", "quaternion_wxyz")
+
+
+_Body = TypeVar("_Body", bound=BaseModel)
+
+
+def _exactly_one(body: _Body, names: tuple[str, ...]) -> _Body:
+    """``body`` when exactly one of the fields ``names`` is given, else ValueError."""
+    given = [name for name in names if getattr(body, name) is not None]
+    if len(given) != 1:
+        choices = ", ".join(names[:-1]) + " or " + names[-1]
+        none = "neither" if len(names) == 2 else "none"
+        raise ValueError(f"give exactly one of {choices}, got {given or none}")
+    return body
+
+
 class JointsGoal(_Request):
     """``PUT /joints``: the goal's input angles."""
 
@@ -68,12 +85,7 @@ class OrientationGoal(_Request):
 
     @model_validator(mode="after")
     def _exactly_one(self) -> OrientationGoal:
-        given = [name for name in ("rpy_deg", "quaternion_wxyz") if getattr(self, name) is not None]
-        if len(given) != 1:
-            raise ValueError(
-                f"give exactly one of rpy_deg or quaternion_wxyz, got {given or 'neither'}"
-            )
-        return self
+        return _exactly_one(self, ("rpy_deg", "quaternion_wxyz"))
 
 
 class CheckRequest(_Request):
@@ -85,13 +97,7 @@ class CheckRequest(_Request):
 
     @model_validator(mode="after")
     def _exactly_one(self) -> CheckRequest:
-        names = ("theta_deg", "rpy_deg", "quaternion_wxyz")
-        given = [name for name in names if getattr(self, name) is not None]
-        if len(given) != 1:
-            raise ValueError(
-                f"give exactly one of theta_deg, rpy_deg or quaternion_wxyz, got {given or 'none'}"
-            )
-        return self
+        return _exactly_one(self, _GOAL_FORMS)
 
 
 class StreamTarget(_Request):
@@ -105,13 +111,7 @@ class StreamTarget(_Request):
 
     @model_validator(mode="after")
     def _exactly_one(self) -> StreamTarget:
-        names = ("theta_deg", "rpy_deg", "quaternion_wxyz")
-        given = [name for name in names if getattr(self, name) is not None]
-        if len(given) != 1:
-            raise ValueError(
-                f"give exactly one of theta_deg, rpy_deg or quaternion_wxyz, got {given or 'none'}"
-            )
-        return self
+        return _exactly_one(self, _GOAL_FORMS)
 
 
 class StreamControl(_Request):
