@@ -582,6 +582,25 @@ def test_spm_serve_as_a_newcomer_starts_it() -> None:
     assert "kinematic twin of design 'prototype'" in err
 
 
+def test_spm_serve_sim_dynamic_moves_in_time() -> None:
+    with _spm_serve("--sim", "dynamic") as (url, process):
+        with httpx.Client(base_url=url, timeout=REQUEST_TIMEOUT) as session:
+            state = _json(session.put("/joints", json={"theta_deg": [10.0, 0.0, 0.0]}))
+            assert state["backend"] == "dynamic" and state["moving"] is True
+            assert state["goal_deg"] == [10.0, 0.0, 0.0]
+            deadline = time.monotonic() + STARTUP_TIMEOUT
+            while _json(session.get("/state"))["moving"]:
+                assert time.monotonic() < deadline
+                time.sleep(0.02)
+            np.testing.assert_allclose(
+                _json(session.get("/joints"))["theta_deg"], [10, 0, 0], atol=0.5
+            )
+        process.terminate()
+        _, err = process.communicate(timeout=REQUEST_TIMEOUT)
+    assert process.returncode == 0, err
+    assert "dynamic twin of design 'prototype'" in err
+
+
 def test_spm_serve_refuses_other_hosts_without_a_token() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "spm_pin", "serve", "--host", "0.0.0.0", "--port", "8750"],

@@ -3,7 +3,7 @@
 
 Command::
 
-    spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic] [--design NAME|FILE]
+    spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic|dynamic] [--design NAME|FILE]
               [--token-file FILE] [--deadline SECONDS]
 
 Serves until Ctrl-C (or SIGTERM), then exits with status 0. Binding an address other
@@ -28,7 +28,7 @@ from ._options import design_of as _design
 __all__ = ["SIMULATIONS", "add_parser"]
 
 #: The twins ``spm serve --sim`` offers.
-SIMULATIONS = ("kinematic",)
+SIMULATIONS = ("kinematic", "dynamic")
 
 
 def _port(text: str) -> int:
@@ -53,13 +53,21 @@ def _deadline(text: str) -> float:
 
 def _run_serve(args: argparse.Namespace) -> int:
     try:  # imported here: FastAPI, uvicorn and pydantic are the remote extra
-        from ..remote import KinematicBackend, check_binding, load_token, serve
+        from ..remote import (
+            DynamicBackend,
+            KinematicBackend,
+            check_binding,
+            load_token,
+            serve,
+        )
     except ImportError as exc:
         raise _UsageError(str(exc)) from exc
     token = load_token(args.token_file)
     check_binding(args.host, args.port, token)
     design = _design(args)
-    backend = KinematicBackend(design)
+    backend: KinematicBackend | DynamicBackend = (
+        DynamicBackend(design) if args.sim == "dynamic" else KinematicBackend(design)
+    )
     host = f"[{args.host}]" if ":" in args.host else args.host
     url = f"http://{host}:{args.port}"
     guarded = "bearer token required" if token is not None else "no token: loopback only"
@@ -81,6 +89,9 @@ def _run_serve(args: argparse.Namespace) -> int:
             serve(backend, host=args.host, port=args.port, token=token, deadline=args.deadline)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        close = getattr(backend, "close", None)
+        if close is not None:
+            close()
     return 0
 
 
@@ -104,7 +115,8 @@ def add_parser(commands: Any) -> None:
         "--sim",
         choices=SIMULATIONS,
         default="kinematic",
-        help="the twin: kinematic (the model alone; goals are reached at once)",
+        help="the twin: kinematic (the model alone; goals are reached at once) or dynamic "
+        "(the closed-loop dynamics with the servos' model, simulated in real time)",
     )
     _add_design_option(serve)
     serve.add_argument(

@@ -7,6 +7,8 @@ uvicorn and pydantic); ``import spm_pin`` never imports this package.
   goal that the safety guard (:class:`~spm_pin.hardware.guard.SafetyGuard`, the
   same one that guards the servos) accepts. :class:`TwinBackend` is what every twin
   provides.
+* :class:`DynamicBackend`: the closed-loop dynamics with the servos' model, simulated
+  in real time (``spm serve --sim dynamic``): goals take the time they would take.
 * :func:`create_app`: the FastAPI application with the resources ``/state``,
   ``/joints``, ``/orientation``, ``/collisions``, ``/check`` and ``/stop`` (see
   :mod:`spm_pin.remote.app` for the status codes).
@@ -34,6 +36,7 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
         'pip install "spm-pin[remote]"'
     ) from exc
 
+from ._motion import PATH_CHECK, MotionTwin
 from .app import DEFAULT_MAX_BODY_BYTES, OPEN_PATHS, create_app
 from .backend import (
     CHECK_NAMES,
@@ -42,6 +45,7 @@ from .backend import (
     CollisionState,
     GoalRefusedError,
     GoalReport,
+    GuardedTwin,
     KinematicBackend,
     PairState,
     TwinBackend,
@@ -57,6 +61,7 @@ from .client import (
     RemoteRefusedError,
     Stream,
 )
+from .dynamic import DynamicBackend
 from .server import (
     DEFAULT_HOST,
     DEFAULT_PORT,
@@ -84,6 +89,7 @@ __all__ = [
     "MAX_RATE",
     "MIN_RATE",
     "OPEN_PATHS",
+    "PATH_CHECK",
     "RATE_CHECK_NAMES",
     "TOKEN_ENVIRONMENT_VARIABLE",
     "AsyncClient",
@@ -93,11 +99,14 @@ __all__ = [
     "CheckOutcome",
     "Client",
     "CollisionState",
+    "DynamicBackend",
     "GoalRefusedError",
     "GoalReport",
+    "GuardedTwin",
     "KinematicBackend",
     "Lease",
     "LeaseHeldError",
+    "MotionTwin",
     "PairState",
     "RemoteError",
     "RemoteRefusedError",

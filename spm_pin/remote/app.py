@@ -35,20 +35,29 @@ of a streaming client: the ``Authorization: Bearer`` header, or (browsers cannot
 headers on a WebSocket) a first message ``{"type": "auth", "token": ...}``; a wrong
 one closes the connection with code 1008. Not in the query string, where access
 logs would keep it.
+
+Browser pages from other origins (``cors_origins``, off by default): a page served
+from one of the listed origins may call the API (CORS headers; the preflight of a
+``PUT`` with a JSON body or an ``Authorization`` header is answered before the token
+is checked, since browsers send it without credentials; the request itself still
+needs the token). ``WS /stream`` is not covered by CORS: browsers open WebSockets to
+any origin.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 import secrets
-from collections.abc import Awaitable, Callable, MutableMapping
+from collections.abc import Awaitable, Callable, MutableMapping, Sequence
 from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 from fastapi import Depends, FastAPI, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
+from fastapi.middleware.cors import CORSMiddleware
 from fastapi.responses import JSONResponse
 from fastapi.security import HTTPBearer
 
@@ -224,12 +233,40 @@ def _rotation(rpy_deg: Any, quaternion_wxyz: Any) -> Any:
     return matrix_from_quaternion(np.asarray(quaternion_wxyz, dtype=float))
 
 
+#: An origin as browsers send it: scheme, host and optional port, no path.
+_ORIGIN = re.compile(r"https?://[^/\s?#*]+")
+
+
+def _check_origins(cors_origins: Sequence[str]) -> tuple[str, ...]:
+    """The allowed origins, each ``http(s)://host[:port]`` (no wildcard, no path)."""
+    from ..errors import InputError
+
+    if isinstance(cors_origins, str | bytes):
+        raise InputError(
+            f"cors_origins must be a sequence of origins, not one string: give [{cors_origins!r}]",
+            argument="cors_origins",
+            value=cors_origins,
+        )
+    origins = tuple(cors_origins)
+    for origin in origins:
+        if not isinstance(origin, str) or not _ORIGIN.fullmatch(origin):
+            raise InputError(
+                f"cors_origins: {origin!r} is not an origin; give scheme, host and port "
+                "as a browser sends them, e.g. 'http://127.0.0.1:8000' (no path, no "
+                "trailing slash, no wildcard)",
+                argument="cors_origins",
+                value=origin,
+            )
+    return origins
+
+
 def create_app(
     backend: TwinBackend | None = None,
     *,
     token: str | None = None,
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
     deadline: float = DEFAULT_DEADLINE,
+    cors_origins: Sequence[str] = (),
 ) -> FastAPI:
     """The HTTP API of a twin, as an ASGI application (serve it with uvicorn).
 
@@ -242,9 +279,19 @@ def create_app(
             the largest message of a streaming client.
         deadline: Seconds the streaming client holding the lease may stay silent
             before the lease ends and the twin stops [s] (> 0).
+        cors_origins: Origins (``"http://127.0.0.1:8000"``: scheme, host, port) whose
+            browser pages may call the API (CORS); none by default. Preflight
+            requests are answered before the token check (browsers send them
+            without the ``Authorization`` header), every other request still needs
+            the token; answers to allowed origins carry
+            ``Access-Control-Allow-Origin``, also a 401, so the page can tell why.
 
     Returns:
         The FastAPI application.
+
+    Raises:
+        InputError: an empty token, a bad ``max_body_bytes`` or ``deadline``, or an
+            entry of ``cors_origins`` that is not an origin (a wildcard, a path).
     """
     from ..errors import InputError
 
@@ -268,6 +315,7 @@ def create_app(
             argument="deadline",
             value=deadline,
         )
+    origins = _check_origins(cors_origins)
     twin: TwinBackend = backend if backend is not None else KinematicBackend()
     # Declares the bearer scheme in /openapi.json (the check itself is _Guarded's).
     security = [Depends(HTTPBearer(auto_error=False))] if token is not None else []
@@ -299,6 +347,15 @@ def create_app(
         return state_response(state)
 
     app.add_middleware(_Guarded, token=token, max_body_bytes=max_body_bytes)
+    if origins:
+        # Added last, so outermost: preflights are answered before the token check.
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=list(origins),
+            allow_methods=["GET", "PUT", "POST"],
+            allow_headers=["Content-Type", "Authorization"],
+            allow_credentials=False,
+        )
 
     @app.exception_handler(GoalRefusedError)
     async def _on_refused(request: Request, exc: GoalRefusedError) -> JSONResponse:

@@ -47,6 +47,7 @@ __all__ = [
     "CollisionState",
     "GoalRefusedError",
     "GoalReport",
+    "GuardedTwin",
     "KinematicBackend",
     "PairState",
     "TwinBackend",
@@ -201,10 +202,17 @@ class TwinState:
         dexterity: 1/kappa(J) in [0, 1] (NaN if unreachable).
         singularity_margin: Distance to singularity in [0, 1] (NaN if unreachable).
         assembly: Assembly-mode label such as ``"+++/-"`` (None if unreachable).
-        backend: The backend's name (``"kinematic"``).
+        backend: The backend's name (``"kinematic"``, ``"dynamic"``, ``"servos"``).
         time: Server time when the state was read [s since the epoch].
         moving: A motion is in progress (never for the kinematic twin).
         stops: How many times the twin was stopped (:meth:`TwinBackend.stop`).
+        theta_dot: Input speeds [rad/s], (3,) (None for the kinematic twin).
+        goal: The goal the twin is heading for now [rad], (3,) (None for the
+            kinematic twin, which is always at its goal).
+        fault: Why the twin stopped by itself (a failed simulation step, a servo
+            fault), or None.
+        torque: The actuators hold their goal (False after a stop of the servo
+            twin: torque off).
     """
 
     theta: FloatArray
@@ -219,6 +227,10 @@ class TwinState:
     time: float
     moving: bool = False
     stops: int = 0
+    theta_dot: FloatArray | None = None
+    goal: FloatArray | None = None
+    fault: str | None = None
+    torque: bool = True
 
 
 class TwinBackend(Protocol):
@@ -297,26 +309,23 @@ def _check_of(reason: str) -> str:
     return "other"
 
 
-class KinematicBackend:
-    """The model alone: a twin whose input angles jump to each accepted goal.
+class GuardedTwin:
+    """What every twin shares: the robot, the guard, the verdict on goals, the
+    derived state of input angles, inverse kinematics and collisions.
+
+    Subclasses say where the input angles are (:meth:`joints`) and how they move
+    (``move``, ``stop``, ``state``). Model queries take ``self._lock``: Pinocchio's
+    data and the guard's cache are not safe to share between threads.
 
     Args:
-        design: The SPM (default: the prototype); ignored when ``robot`` is given.
         robot: The robot with its collision checker (default
             ``spm.build_robot(design)``).
+        design: The SPM (default: the prototype); ignored when ``robot`` is given.
         limits: The guard's limits (default
             :class:`~spm_pin.hardware.config.SafetyLimits`).
-        theta: The starting input angles [rad] (default: home, [0, 0, 0]); must be
-            safe.
-
-    Attributes:
-        name: ``"kinematic"``.
-        design: The design of the robot.
-        robot: The robot model.
-        guard: The safety guard every goal passes.
     """
 
-    name = "kinematic"
+    name = "twin"
 
     def __init__(
         self,
@@ -324,7 +333,6 @@ class KinematicBackend:
         *,
         robot: SPMRobot | None = None,
         limits: SafetyLimits | None = None,
-        theta: npt.ArrayLike | None = None,
     ) -> None:
         from ..collision import build_robot
         from ..hardware.guard import SafetyGuard
@@ -335,15 +343,15 @@ class KinematicBackend:
         self.design: SPMDesign = robot.design
         self.guard: SafetyGuard = SafetyGuard(robot, limits)
         self._lock = threading.Lock()
-        start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
-        self._report(start).require()
-        self._theta: FloatArray = start
-        self._state = self._compute_state(start)
         self.stops = 0
         self.last_stop_reason: str | None = None
 
     def __repr__(self) -> str:
-        return f"KinematicBackend(design={self.design.name!r})"
+        return f"{type(self).__name__}(design={self.design.name!r})"
+
+    def joints(self) -> FloatArray:
+        """The current input angles [rad], (3,)."""
+        raise NotImplementedError
 
     # ---------------------------------------------------------------- private
     def _report(
@@ -399,7 +407,9 @@ class KinematicBackend:
             collision_margin=limits.collision_margin,
         )
 
-    def _compute_state(self, theta: FloatArray) -> TwinState:
+    def _compute_state(self, theta: FloatArray, min_distance: float | None = None) -> TwinState:
+        """The state at input angles [rad]; ``min_distance`` [m] when already known
+        (else the exact distances are computed: the costly part)."""
         from ..collision import check_input
 
         fk = forward_kinematics(theta, self.design)
@@ -413,13 +423,13 @@ class KinematicBackend:
             dexterity = float(jac.dexterity[0])
             margin = float(jac.singularity_margin[0])
             label = mode_label(jac.b[0]) + ("/+" if float(jac.det_a[0]) > 0 else "/-")
-        report = check_input(theta, self.robot)
+        report = check_input(theta, self.robot, distances=min_distance is None)
         return TwinState(
             theta=theta.copy(),
             R=R,
             reachable=reachable,
             pairs=report.pairs,
-            min_distance=report.min_distance,
+            min_distance=report.min_distance if min_distance is None else min_distance,
             dexterity=dexterity,
             singularity_margin=margin,
             assembly=label,
@@ -427,18 +437,30 @@ class KinematicBackend:
             time=time.time(),
         )
 
-    # ---------------------------------------------------------------- public
-    def state(self) -> TwinState:
-        """The current state (its ``time`` is now)."""
-        with self._lock:
-            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
+    def _accept(
+        self,
+        goal: FloatArray,
+        last: FloatArray | None = None,
+        before: FloatArray | None = None,
+        period: float | None = None,
+    ) -> None:
+        """Raise GoalRefusedError unless the goal is safe (call with the lock held).
 
-    def joints(self) -> FloatArray:
-        """The current input angles [rad], (3,)."""
-        with self._lock:
-            theta: FloatArray = self._theta.copy()
-        return theta
+        An accepted goal is decided by the guard and the checker's yes/no collision
+        answer; only a refused goal pays for the full report (it names the pairs).
+        """
+        from ..collision import check_input
 
+        verdict = self.guard.check(goal, previous=last, before_previous=before, period=period)
+        if (
+            not verdict.safe
+            or check_input(
+                goal, self.robot, margin=self.guard.limits.collision_margin, distances=False
+            ).collision
+        ):
+            self._report(goal, last, before, period, verdict).require()
+
+    # ---------------------------------------------------------------- shared public
     def check(self, theta: npt.ArrayLike) -> GoalReport:
         """The verdict on a goal [rad], (3,), without moving.
 
@@ -448,48 +470,6 @@ class KinematicBackend:
         goal = _theta(theta)
         with self._lock:
             return self._report(goal)
-
-    def move(
-        self,
-        theta: npt.ArrayLike,
-        *,
-        previous: npt.ArrayLike | None = None,
-        before_previous: npt.ArrayLike | None = None,
-        period: float | None = None,
-    ) -> TwinState:
-        """Jump to a goal [rad], (3,), if it is safe.
-
-        Args:
-            theta: The goal [rad], (3,).
-            previous: For a stream of goals: the goal commanded before [rad]; with
-                ``period`` the guard checks the speed |theta - previous| / period.
-            before_previous: The goal commanded before ``previous`` [rad]; the
-                guard then checks the acceleration too.
-            period: Time since ``previous`` was commanded [s].
-
-        Raises:
-            InputError: not 3 finite numbers.
-            GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
-                ``report`` says why); the state is unchanged.
-        """
-        from ..collision import check_input
-
-        goal = _theta(theta)
-        before = None if before_previous is None else _theta(before_previous)
-        last = None if previous is None else _theta(previous)
-        with self._lock:
-            verdict = self.guard.check(goal, previous=last, before_previous=before, period=period)
-            if (
-                not verdict.safe
-                or check_input(
-                    goal, self.robot, margin=self.guard.limits.collision_margin, distances=False
-                ).collision
-            ):
-                # Only a refused goal pays for the full report (it names the pairs).
-                self._report(goal, last, before, period, verdict).require()
-            self._state = self._compute_state(goal)
-            self._theta = goal
-            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
 
     def solve(self, R: npt.ArrayLike) -> FloatArray:
         """Input angles [rad] for platform rotation R, home working mode (as ``spm ik``).
@@ -515,14 +495,93 @@ class KinematicBackend:
         """Every checked link pair at the current state (no margin)."""
         from ..collision import check_input
 
+        theta = self.joints()
         with self._lock:
-            theta = self._theta.copy()
             report = check_input(theta, self.robot)
         pairs = tuple(
             PairState(pair, pair in report.pairs, float(distance))
             for pair, distance in report.distances.items()
         )
         return CollisionState(theta, pairs)
+
+
+class KinematicBackend(GuardedTwin):
+    """The model alone: a twin whose input angles jump to each accepted goal.
+
+    Args:
+        design: The SPM (default: the prototype); ignored when ``robot`` is given.
+        robot: The robot with its collision checker (default
+            ``spm.build_robot(design)``).
+        limits: The guard's limits (default
+            :class:`~spm_pin.hardware.config.SafetyLimits`).
+        theta: The starting input angles [rad] (default: home, [0, 0, 0]); must be
+            safe.
+
+    Attributes:
+        name: ``"kinematic"``.
+        design: The design of the robot.
+        robot: The robot model.
+        guard: The safety guard every goal passes.
+    """
+
+    name = "kinematic"
+
+    def __init__(
+        self,
+        design: SPMDesign | None = None,
+        *,
+        robot: SPMRobot | None = None,
+        limits: SafetyLimits | None = None,
+        theta: npt.ArrayLike | None = None,
+    ) -> None:
+        super().__init__(design, robot=robot, limits=limits)
+        start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
+        self._report(start).require()
+        self._theta: FloatArray = start
+        self._state = self._compute_state(start)
+
+    def state(self) -> TwinState:
+        """The current state (its ``time`` is now)."""
+        with self._lock:
+            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
+
+    def joints(self) -> FloatArray:
+        """The current input angles [rad], (3,)."""
+        with self._lock:
+            theta: FloatArray = self._theta.copy()
+        return theta
+
+    def move(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+    ) -> TwinState:
+        """Jump to a goal [rad], (3,), if it is safe.
+
+        Args:
+            theta: The goal [rad], (3,).
+            previous: For a stream of goals: the goal commanded before [rad]; with
+                ``period`` the guard checks the speed |theta - previous| / period.
+            before_previous: The goal commanded before ``previous`` [rad]; the
+                guard then checks the acceleration too.
+            period: Time since ``previous`` was commanded [s].
+
+        Raises:
+            InputError: not 3 finite numbers.
+            GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
+                ``report`` says why); the state is unchanged.
+        """
+        goal = _theta(theta)
+        before = None if before_previous is None else _theta(before_previous)
+        last = None if previous is None else _theta(previous)
+        with self._lock:
+            self._accept(goal, last, before, period)
+            self._state = self._compute_state(goal)
+            self._theta = goal
+            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
 
     def stop(self, reason: str | None = None) -> TwinState:
         """Nothing is ever in motion in the kinematic twin: it holds still, counts

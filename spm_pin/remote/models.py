@@ -151,9 +151,19 @@ class StateResponse(_Response):
     dexterity: float | None = Field(description="1/kappa(J) in [0, 1].")
     singularity_margin: float | None = Field(description="Distance to singularity in [0, 1].")
     assembly: str | None = Field(description="Assembly-mode label such as +++/-.")
-    backend: str = Field(description="The twin: kinematic.")
+    backend: str = Field(description="The twin: kinematic, dynamic or servos.")
     moving: bool = Field(description="A motion is in progress.")
     stops: int = Field(description="How many times the twin was stopped.")
+    theta_dot_deg_s: list[float] | None = Field(
+        default=None, description="Input speeds [deg/s] (null for the kinematic twin)."
+    )
+    goal_deg: list[float] | None = Field(
+        default=None, description="The goal being approached [deg] (null: kinematic twin)."
+    )
+    torque: bool = Field(default=True, description="The actuators hold their goal.")
+    fault: str | None = Field(
+        default=None, description="Why the twin stopped by itself (simulation or servo fault)."
+    )
     time: float = Field(description="Server time [s since the epoch].")
 
 
@@ -246,6 +256,10 @@ def state_response(state: TwinState) -> StateResponse:
         backend=state.backend,
         moving=state.moving,
         stops=state.stops,
+        theta_dot_deg_s=None if state.theta_dot is None else _degrees(state.theta_dot),
+        goal_deg=None if state.goal is None else _degrees(state.goal),
+        torque=state.torque,
+        fault=state.fault,
         time=state.time,
     )
 
