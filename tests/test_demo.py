@@ -335,6 +335,120 @@ def test_report_files(out: Path, record: dict[str, Any]) -> None:
         assert (out / name).is_file(), name
 
 
+class _Tables(html.parser.HTMLParser):
+    """The report's tables by class (rows of cell texts) and its preformatted blocks."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: dict[str, list[list[str]]] = {}
+        self.pre: list[str] = []
+        self._table: list[list[str]] | None = None
+        self._cell: list[str] | None = None
+        self._in_pre = False
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        if tag == "table":
+            self._table = self.tables.setdefault(str(dict(attrs).get("class")), [])
+        elif tag == "tr" and self._table is not None:
+            self._table.append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+        elif tag == "pre":
+            self._in_pre = True
+            self.pre.append("")
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in ("td", "th") and self._cell is not None and self._table:
+            self._table[-1].append("".join(self._cell).strip())
+            self._cell = None
+        elif tag == "table":
+            self._table = None
+        elif tag == "pre":
+            self._in_pre = False
+
+    def handle_data(self, data: str) -> None:
+        if self._cell is not None:
+            self._cell.append(data)
+        if self._in_pre:
+            self.pre[-1] += data
+
+
+def test_report_tables(out: Path, record: dict[str, Any]) -> None:
+    """The report is tables, not text dumps: the assembly modes one row each under
+    unique labels, the motion's samples, the torque verdict once with what limits it."""
+    text = (out / "index.html").read_text(encoding="utf-8")
+    report = _Tables()
+    report.feed(text)
+    assert all(len(block.splitlines()) <= 10 for block in report.pre), report.pre
+    assert report.pre == []
+    # every real assembly mode, one row each (after two heading rows), labels unique
+    modes = [row[0] for row in report.tables["modes"][2:]]
+    assert modes == [mode["label"] for mode in record["assembly_modes"]["modes"]]
+    assert len(set(modes)) == len(modes) == record["assembly_modes"]["count"] == 8
+    # the forward kinematics: one row per method, no repeat of the table as text
+    fk = [row[0] for row in report.tables["fk"][2:]]
+    assert fk == ["analytic (closed form)", "Newton projection", "MuJoCo (upright)",
+                  "MuJoCo (no gravity)"]  # fmt: skip
+    assert "max |v - v_analytic|" not in text
+    # v_1 x of the analytic axes: in the rows of the methods that agree to 1e-6 only
+    methods = record["forward_kinematics"]["methods"].values()
+    agree = sum(f"{m['v'][0][0]:.6f}" == "-0.862372" for m in methods)
+    assert text.count("-0.862372") == agree == 3
+    # the motion: the shown samples in a table whose last row is the input
+    samples = report.tables["samples"][2:]
+    assert [row[0] for row in samples] == ["0", "6", "12", "18", "24"]
+    assert samples[-1][1] == "60, 90, 120"
+    # the torques: the verdict once, the limit named
+    torques = record["torques"]
+    assert text.count(html.escape(torques["verdict"])) == 1
+    load = f"{100.0 * torques['max_utilisation']:.1f}%"
+    assert load == "70.5%" and text.count(load) == 1
+    assert torques["limiting_factor"] == "speed"
+    assert "set by speed, not torque" in text
+    joints = {row[0]: row[1:] for row in report.tables["joints"]}
+    np.testing.assert_allclose(
+        [float(x) for x in joints["peak |speed| [rpm]"]], torques["peak_speed_rpm"], atol=5e-3
+    )
+    pairs = report.tables["pairs"][1:]
+    assert pairs == record["colliding_input"]["pairs"]
+
+
+def test_report_figures(out: Path, record: dict[str, Any]) -> None:
+    """The safe-workspace map's legend lists only what the map shows, and the captions
+    name the colours the figures use."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.patches import Patch
+
+    from spm_pin.study.context import DemoContext as Context
+    from spm_pin.study.plots import SAFE_CATEGORIES, plot_safe_workspace
+
+    saved = WorkspaceMap.load(out / "workspace")
+    gaps = np.array([sample["theta_deg"] for sample in record["motion"]["path"]])
+    gaps = gaps_from_theta(np.radians(gaps))
+    figure = plot_safe_workspace(
+        None, saved, gaps, gaps_from_theta(np.radians(COLLIDING_DEG)), Context()
+    )
+    (axis,) = figure.axes
+    legend = axis.get_legend()
+    patches = [h.get_label() for h in legend.legend_handles if isinstance(h, Patch)]
+    f = saved.fields
+    present = {
+        "no home-mode assembly": bool(np.any(~f["reachable"])),
+        "links collide": bool(np.any(f["reachable"] & f["collision"])),
+        "dexterity too low": bool(np.any(f["reachable"] & ~f["collision"] & ~f["safe"])),
+        "safe": bool(np.any(f["safe"])),
+    }
+    assert patches == [label for _, _, label in SAFE_CATEGORIES if present[label]]
+    assert "dexterity too low" not in patches  # no such point at the prototype's settings
+    for handle, label in zip(*axis.get_legend_handles_labels(), strict=True):
+        assert np.isfinite(np.atleast_1d(handle.get_xdata())).any(), label
+    motion = [line for line in axis.get_lines() if line.get_label() == "the motion from home"]
+    assert motion[0].get_color() == "k"
+    text = (out / "index.html").read_text(encoding="utf-8")
+    assert "the motion from home (black dots on a white line)" in text
+    assert "motion (white)" not in text
+
+
 def test_scenes_are_self_contained(out: Path) -> None:
     sizes = set()
     for frame in ("demo_input", "motion", "colliding_input"):

@@ -464,6 +464,46 @@ def test_check_servo_verdicts() -> None:
     assert not bad.within_limits and bad.message.startswith("EXCEEDS")
     assert (bad.worst_sample, bad.worst_joint) == (1, 0)  # 7 rad/s > 53 rpm beats 8 N m
     np.testing.assert_allclose(bad.peak_torque, [0.0, 8.0, 0.0])
+    # what sets the peak load is named: torque at rest, speed for the fast sample
+    assert ok.limit == "torque" and "set by torque" in ok.message
+    assert bad.limit == "speed" and "limited by speed" in bad.message
+
+
+def test_torque_figure_one_unit_system_and_full_envelope() -> None:
+    """The torque plot speaks rpm on its axis as in its title and legend, draws the
+    whole torque-speed envelope of the servo, and names what sets the peak load."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.patches import Polygon
+
+    from spm_pin.dynamics.plots import torque_figure
+
+    motion = D.Trajectory.minimum_jerk(np.zeros(3), np.radians([60.0, 90.0, 120.0]), 1.0, 100.0)
+    result = D.inverse_dynamics(None, motion)
+    check = D.check_servo(result.torque, result.theta_dot, time=motion.time)
+    assert check.limit == "speed"  # 37.5 of 53 rpm, a few thousandths of the stall torque
+    figure = torque_figure(result)
+    left, right = figure.axes[:2]
+    assert right.get_xlabel() == "speed [rpm]" and left.get_xlabel() == "time [s]"
+    texts = [figure.get_suptitle()]
+    for axis in (left, right):
+        texts += [axis.get_title(), axis.get_xlabel(), axis.get_ylabel()]
+        texts += [text.get_text() for text in axis.get_legend().get_texts()]
+    assert all("rad/s" not in text for text in texts), texts
+    assert "rpm" in figure.get_suptitle()  # the default title is the verdict, in rpm
+    servo = D.XM540_W150
+    (envelope,) = [p for p in right.patches if isinstance(p, Polygon)]
+    corners = envelope.get_xy()
+    np.testing.assert_allclose(corners[:, 0].max(), 2.0 * servo.no_load_rpm)
+    np.testing.assert_allclose(corners[:, 0].min(), -2.0 * servo.no_load_rpm)
+    np.testing.assert_allclose(np.abs(corners[:, 1]).max(), servo.stall_torque)
+    lo, hi = right.get_ylim()
+    assert lo < -servo.stall_torque and hi > servo.stall_torque  # all of it in view
+    legend = [text.get_text() for text in right.get_legend().get_texts()]
+    assert any("peak load 70.5%" in text and "set by speed" in text for text in legend)
+    # every legend entry stands for something drawn
+    for handle, label in zip(*right.get_legend_handles_labels(), strict=True):
+        if hasattr(handle, "get_xdata"):
+            assert np.isfinite(np.atleast_1d(handle.get_xdata())).any(), label
 
 
 # ------------------------------------------------------------------ trajectory

@@ -249,6 +249,34 @@ def test_save_load_and_plots(coarse: WorkspaceMap, tmp_path: Path) -> None:
         WorkspaceMap.load(written["csv"])
 
 
+def test_gap_map_legends(coarse: WorkspaceMap) -> None:
+    """The yes/no maps carry a legend of exactly their two values (no 0-1 colour bar);
+    the continuous maps a colour bar each."""
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from spm_pin.workspace.result import BINARY_PANELS, GAP_PANELS
+
+    figure = coarse.gap_figure()
+    try:
+        panels = {axis.get_title(): axis for axis in figure.axes if axis.get_title()}
+        assert len(panels) == len(GAP_PANELS)
+        for name, title, _ in GAP_PANELS:
+            legend = panels[title].get_legend()
+            if name in BINARY_PANELS:
+                no, yes = BINARY_PANELS[name]
+                assert legend is not None, title
+                assert [text.get_text() for text in legend.get_texts()] == [yes[0], no[0]]
+                # both values occur on this map, so neither entry is empty
+                assert np.any(coarse[name]) and not np.all(coarse[name])
+            else:
+                assert legend is None, title
+        colorbars = len(figure.axes) - len(GAP_PANELS)
+        assert colorbars == len(GAP_PANELS) - len(BINARY_PANELS)
+    finally:
+        plt.close(figure)
+
+
 def test_cli_workspace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "ws"
     argv = ["workspace", "--step", "30", "--no-plots", "--quiet", "--json", "--out", str(out)]

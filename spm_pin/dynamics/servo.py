@@ -10,6 +10,7 @@ Coulomb friction of the nine joints.
 from __future__ import annotations
 
 import dataclasses
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -231,6 +232,9 @@ class ServoCheck:
         rms_torque: Root mean square torque per joint [N m], (3,).
         utilisation: Load per sample and joint, (N, 3).
         message: One sentence: the verdict.
+        limit: What sets ``max_utilisation``: ``"speed"`` when the worst sample's
+            speed is the larger share of the no-load speed than its torque is of the
+            stall torque (the supply voltage limits), else ``"torque"``.
     """
 
     servo: ServoModel
@@ -243,6 +247,7 @@ class ServoCheck:
     rms_torque: FloatArray
     utilisation: FloatArray
     message: str
+    limit: Literal["speed", "torque"]
 
 
 def check_servo(
@@ -288,17 +293,21 @@ def check_servo(
     sample, joint = divmod(flat, 3)
     worst = float(use[sample, joint])
     within = bool(worst <= 1.0)
+    speed_share = abs(float(omega[sample, joint])) / servo.no_load_speed
+    torque_share = abs(float(tau[sample, joint])) / servo.stall_torque
+    limit: Literal["speed", "torque"] = "speed" if speed_share > torque_share else "torque"
     at = f"t = {when[sample]:.3f} s" if when is not None else f"sample {sample}"
     needs = f"{tau[sample, joint]:+.3g} N m at {omega[sample, joint] / RPM:+.3g} rpm ({at})"
     if within:
         message = (
             f"OK: within the {servo.name} torque-speed envelope; peak load "
-            f"{100.0 * worst:.1f}% (joint u_{joint + 1}: {needs})"
+            f"{100.0 * worst:.1f}%, set by {limit} (joint u_{joint + 1}: {needs})"
         )
     else:
         message = (
             f"EXCEEDS the {servo.name} torque-speed envelope: joint u_{joint + 1} needs "
-            f"{needs}, {100.0 * worst:.0f}% of what the servo can give (stall "
+            f"{needs}, {100.0 * worst:.0f}% of what the servo can give, limited by {limit} "
+            f"(stall "
             f"{servo.stall_torque:g} N m, no-load speed {servo.no_load_rpm:g} rpm)"
         )
     return ServoCheck(
@@ -312,4 +321,5 @@ def check_servo(
         rms_torque=np.sqrt(np.mean(tau**2, axis=0)),
         utilisation=use,
         message=message,
+        limit=limit,
     )

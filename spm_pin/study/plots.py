@@ -13,7 +13,7 @@ from .._records import FloatArray
 from .context import STUDY_AGREEMENT, DemoContext
 from .context import degrees_text as _degrees_text
 
-__all__ = ["plot_motion", "plot_safe_workspace"]
+__all__ = ["SAFE_CATEGORIES", "plot_motion", "plot_safe_workspace"]
 
 
 def _figure(size: tuple[float, float]) -> Any:
@@ -69,9 +69,25 @@ def plot_motion(
     figure.savefig(target, format="png", dpi=100)
 
 
+#: The categories of the safe-workspace map: value, colour, legend label.
+SAFE_CATEGORIES: tuple[tuple[int, str, str], ...] = (
+    (0, "0.93", "no home-mode assembly"),
+    (1, "tab:red", "links collide"),
+    (2, "orange", "dexterity too low"),
+    (3, "tab:blue", "safe"),
+)
+
+
 def plot_safe_workspace(
-    target: Path, result: Any, gaps: FloatArray, colliding_gaps: FloatArray, ctx: DemoContext
-) -> None:
+    target: Path | None,
+    result: Any,
+    gaps: FloatArray,
+    colliding_gaps: FloatArray,
+    ctx: DemoContext,
+) -> Any:
+    """The safe set over the gap plane with the motion and the two inputs of the study;
+    writes ``target`` (PNG) unless None and returns the figure. The legend lists the
+    categories that occur on the map only."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
@@ -84,7 +100,7 @@ def plot_safe_workspace(
     d12, d23, index = result.grid
     image = np.full((d12.size, d23.size), np.nan)
     image[index[:, 0], index[:, 1]] = category
-    colors = ("0.93", "tab:red", "orange", "tab:blue")
+    colors = [color for _, color, _ in SAFE_CATEGORIES]
     figure = _figure((7.5, 6.8))
     axis = figure.subplots()
     axis.imshow(
@@ -97,8 +113,8 @@ def plot_safe_workspace(
         interpolation="nearest",
         aspect="equal",
     )
-    axis.plot(gaps[:, 1], gaps[:, 0], "-", color="white", lw=2.5)
-    axis.plot(gaps[:, 1], gaps[:, 0], ".", color="k", ms=3, label="the motion")
+    axis.plot(gaps[:, 1], gaps[:, 0], "-", color="white", lw=4.0)
+    axis.plot(gaps[:, 1], gaps[:, 0], ".-", color="k", lw=1.0, ms=4, label="the motion from home")
     axis.plot(gaps[-1, 1], gaps[-1, 0], "*", color="gold", mec="k", ms=16, label="demonstration")
     axis.plot(
         colliding_gaps[1],
@@ -114,11 +130,11 @@ def plot_safe_workspace(
     axis.set_ylim(min(float(d12[0]), float(colliding_gaps[0])) - 10.0, float(d12[-1]) + 5.0)
     axis.set_xlabel("D23 [deg]")
     axis.set_ylabel("D12 [deg]")
+    present = set(np.unique(category).astype(int).tolist())
     handles = [
-        Patch(color=colors[0], label="no home-mode assembly"),
-        Patch(color=colors[1], label="links collide"),
-        Patch(color=colors[2], label="dexterity too low"),
-        Patch(color=colors[3], label="safe"),
+        Patch(color=color, label=label)
+        for value, color, label in SAFE_CATEGORIES
+        if value in present
     ]
     markers, _ = axis.get_legend_handles_labels()
     axis.legend(handles=handles + markers, loc="upper right", fontsize=8)
@@ -127,4 +143,6 @@ def plot_safe_workspace(
         f"({ctx.workspace_step_deg:g} deg grid)",
         fontsize=10,
     )
-    figure.savefig(target, format="png", dpi=100)
+    if target is not None:
+        figure.savefig(target, format="png", dpi=100)
+    return figure

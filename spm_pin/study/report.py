@@ -6,17 +6,12 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-import numpy as np
-
-from .._records import Record
 from .._version import __version__
 from ._extras import INSTALL_DEMO, Skipped
 from .context import FILES as _FILES
-from .context import FK_METHODS as _FK_METHODS
-from .context import STUDY_AGREEMENT, DemoContext, DemoSection
+from .context import DemoContext, DemoSection
 from .context import degrees_text as _degrees_text
-from .context import methods as _methods
-from .context import sci as _sci
+from .tables import section_tables as _section_tables
 
 __all__ = ["report_files", "report_html", "text_output", "unique_skipped"]
 
@@ -26,10 +21,16 @@ _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 72rem; margin: 2rem auto;
        padding: 0 1rem; color: #222; line-height: 1.45; }
 h1 { font-size: 1.6rem; } h2 { margin-top: 2.5rem; border-bottom: 1px solid #ccc; }
-pre { background: #f5f6f8; padding: 0.8rem; overflow-x: auto; font-size: 0.82rem; }
-table { border-collapse: collapse; font-variant-numeric: tabular-nums; margin: 1rem 0; }
-th, td { border: 1px solid #ccd; padding: 0.2rem 0.5rem; text-align: right; }
-th { background: #eef0f4; }
+table { border-collapse: collapse; font-variant-numeric: tabular-nums; margin: 1rem 0;
+        font-size: 0.85rem; }
+.wide { overflow-x: auto; }
+th, td { border: 1px solid #ccd; padding: 0.2rem 0.5rem; text-align: right;
+         white-space: nowrap; }
+th { background: #eef0f4; text-align: center; }
+th[scope="row"], table.record td, table.pairs td, td.note { text-align: left; }
+table.record th { font-weight: normal; }
+td.note { white-space: normal; }
+p.note, td.note { font-size: 0.85rem; color: #555; }
 figure { margin: 1.2rem 0; }
 figure img { max-width: 100%; border: 1px solid #ddd; }
 iframe { width: 100%; height: 30rem; border: 1px solid #ccd; }
@@ -38,33 +39,9 @@ figcaption { font-size: 0.9rem; color: #555; }
 """
 
 
-def _fk_table(data: Record) -> str:
-    """The platform axes by every method side by side: one row per component."""
-    methods = _methods(data)
-    head = "".join(f"<th>{html.escape(_FK_METHODS[key])}</th>" for key in methods)
-    rows = []
-    for i in range(3):
-        for c, letter in enumerate("xyz"):
-            cells = "".join(f"<td>{np.asarray(m['v'])[i, c]:.6f}</td>" for m in methods.values())
-            rows.append(f"<tr><th>v<sub>{i + 1}</sub> {letter}</th>{cells}</tr>")
-    deviations = "".join(
-        f"<td>{method['deviation_from_analytic']:.1e}</td>" for method in methods.values()
-    )
-    rows.append(f"<tr><th>max |v - v<sub>analytic</sub>|</th>{deviations}</tr>")
-    return (
-        f"<table><tr><th></th>{head}</tr>"
-        + "".join(rows)
-        + "</table>"
-        + f"<p>The study reported an agreement of about {_sci(STUDY_AGREEMENT)} between its "
-        "model and CoppeliaSim.</p>"
-    )
-
-
 def _section_html(section: DemoSection) -> str:
     parts = [f'<section id="{section.key}">', f"<h2>{html.escape(section.title)}</h2>"]
-    if section.key == "forward_kinematics":
-        parts.append(_fk_table(section.data))
-    parts.append("<pre>" + html.escape("\n".join(section.text_lines())) + "</pre>")
+    parts.append(_section_tables(section))
     for item in section.figures:
         parts.append(
             f'<figure><img src="{html.escape(item.path)}" alt="{html.escape(item.caption)}">'

@@ -498,13 +498,14 @@ def _demo_workspace(ctx: DemoContext) -> DemoSection:
                 _FILES["workspace_plot"],
                 "The safe set over the gaps between neighbouring proximal links (reachable in "
                 f"the home mode, dexterity >= {settings.min_dexterity:g}, no self-collision), "
-                "the motion (white), the demonstration input (star) and the colliding input "
-                "(cross).",
+                "the motion from home (black dots on a white line), the demonstration input "
+                "(gold star) and the colliding input (red cross).",
             ),
             ReportItem(
                 f"{_FILES['workspace_folder']}/gap_map.png",
                 "Reachability, singularity margin, dexterity, self-collision, clearance and "
-                "the safe set over the gap plane.",
+                "the safe set over the gap plane (yes/no maps with a legend of their two "
+                "values, the others with a colour bar; white: outside the gap plane).",
             ),
             ReportItem(
                 f"{_FILES['workspace_folder']}/orientation.png",
@@ -563,20 +564,31 @@ def _demo_torques(ctx: DemoContext) -> DemoSection:
         "within_limits": check.within_limits,
         "worst": _worst_sample(result, motion, check),
         "verdict": check.message,
+        "limiting_factor": check.limit,
         "plot": None,
     }
     figures: list[ReportItem] = []
     skipped = _missing("matplotlib", "plot of the torques")
     target = ctx.file("torque_plot", skipped)
     if target is not None:
-        plot_torques(result, target, servo)
+        where = _degrees_text(ctx.theta_deg)
+        plot_torques(
+            result,
+            target,
+            servo,
+            title=f"Actuator torques of the {motion.duration:g} s minimum-jerk move from home "
+            f"to theta = {where} deg against the {servo.name}",
+        )
         data["plot"] = _FILES["torque_plot"]
         figures.append(
             ReportItem(
                 _FILES["torque_plot"],
-                f"Actuator torques of the motion as a {motion.duration:g} s minimum-jerk move "
-                f"(left) and every sample against the {servo.name} torque-speed envelope "
-                "(right).",
+                f"Left: the actuator torques of the motion as a {motion.duration:g} s "
+                "minimum-jerk move. Right: every sample (coloured lines) in the torque-speed "
+                f"plane, inside the full {servo.name} envelope (grey: the current limit "
+                f"+-{servo.stall_torque:g} N m and the voltage lines through the no-load "
+                f"speed {servo.no_load_rpm:g} rpm), with contours of the load and the "
+                f"sample of the peak load (star), set by {check.limit}.",
             )
         )
     return DemoSection(

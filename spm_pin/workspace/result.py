@@ -17,7 +17,7 @@ from ..design import SPMDesign
 from ..errors import FileFormatError, InputError
 from .settings import WorkspaceSettings
 
-__all__ = ["MAP_FIELDS", "WorkspaceMap"]
+__all__ = ["BINARY_PANELS", "GAP_PANELS", "MAP_FIELDS", "WorkspaceMap"]
 
 IntArray = npt.NDArray[np.int64]
 
@@ -41,6 +41,23 @@ MAP_FIELDS: tuple[str, ...] = (
     "azimuth_deg",
     "torsion_deg",
 )
+
+
+#: The panels of the gap map: field, title, colour map (continuous fields).
+GAP_PANELS: tuple[tuple[str, str, str], ...] = (
+    ("reachable", "home-mode assembly", "Greens"),
+    ("singularity_margin", "singularity margin", "viridis"),
+    ("dexterity", "dexterity 1/kappa(J)", "viridis"),
+    ("collision", "self-collision", "Reds"),
+    ("clearance", "clearance [mm]", "magma"),
+    ("safe", "safe set", "Blues"),
+)
+#: The yes/no fields of the gap map: (label, colour) of false, then of true.
+BINARY_PANELS: dict[str, tuple[tuple[str, str], tuple[str, str]]] = {
+    "reachable": (("no home-mode assembly", "0.88"), ("home-mode assembly", "tab:green")),
+    "collision": (("no collision", "0.88"), ("links collide", "tab:red")),
+    "safe": (("not safe", "0.88"), ("safe", "tab:blue")),
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,40 +230,7 @@ class WorkspaceMap:
         out.mkdir(parents=True, exist_ok=True)
         written = {"gap_map": out / "gap_map.png", "orientation": out / "orientation.png"}
         f = self.fields
-        panels = (
-            ("reachable", "home-mode assembly", "Greens"),
-            ("singularity_margin", "singularity margin", "viridis"),
-            ("dexterity", "dexterity 1/kappa(J)", "viridis"),
-            ("collision", "self-collision", "Reds"),
-            ("clearance", "clearance [mm]", "magma"),
-            ("safe", "safe set", "Blues"),
-        )
-        figure, axes = plt.subplots(2, 3, figsize=(15, 9.5), constrained_layout=True)
-        for axis, (name, title, cmap) in zip(axes.flat, panels, strict=True):
-            values = f[name].astype(float) * (1e3 if name == "clearance" else 1.0)
-            if self.grid is not None:
-                d12, d23, _ = self.grid
-                image = self.image(name) * (1e3 if name == "clearance" else 1.0)
-                extent = (d23[0], d23[-1], d12[0], d12[-1])
-                shown = axis.imshow(
-                    image,
-                    origin="lower",
-                    extent=extent,
-                    cmap=cmap,
-                    aspect="equal",
-                    interpolation="nearest",
-                )
-            else:
-                shown = axis.scatter(f["d23_deg"], f["d12_deg"], c=values, s=4, cmap=cmap)
-            figure.colorbar(shown, ax=axis, shrink=0.8)
-            axis.set_title(title)
-            axis.set_xlabel("D23 [deg]")
-            axis.set_ylabel("D12 [deg]")
-        figure.suptitle(
-            f"{self.design.name}: maps over the proximal-link gaps (theta_1 = 0; "
-            f"margin {self.settings.margin * 1e3:g} mm, dexterity >= "
-            f"{self.settings.min_dexterity:g})"
-        )
+        figure = self.gap_figure()
         figure.savefig(written["gap_map"], dpi=110)
         plt.close(figure)
 
@@ -267,6 +251,61 @@ class WorkspaceMap:
         figure.savefig(written["orientation"], dpi=110)
         plt.close(figure)
         return written
+
+    def gap_figure(self) -> Any:
+        """The figure of ``gap_map.png`` (a pyplot ``Figure``; close it when done): six
+        panels over the gap plane. Continuous fields carry a colour bar; the yes/no
+        fields (home-mode assembly, self-collision, safe) carry a legend of their two
+        values instead.
+
+        Raises:
+            InputError: matplotlib is missing (``pip install spm-pin[plot]``).
+        """
+        plt = _pyplot()
+        from matplotlib.colors import ListedColormap
+        from matplotlib.patches import Patch
+
+        f = self.fields
+        figure, axes = plt.subplots(2, 3, figsize=(15, 9.5), constrained_layout=True)
+        for axis, (name, title, look) in zip(axes.flat, GAP_PANELS, strict=True):
+            scale = 1e3 if name == "clearance" else 1.0
+            binary = name in BINARY_PANELS
+            cmap: Any = look
+            if binary:
+                no, yes = BINARY_PANELS[name]
+                cmap = ListedColormap([no[1], yes[1]])
+            limits = {"vmin": 0.0, "vmax": 1.0} if binary else {}
+            if self.grid is not None:
+                d12, d23, _ = self.grid
+                shown = axis.imshow(
+                    self.image(name) * scale,
+                    origin="lower",
+                    extent=(d23[0], d23[-1], d12[0], d12[-1]),
+                    cmap=cmap,
+                    aspect="equal",
+                    interpolation="nearest",
+                    **limits,
+                )
+            else:
+                values = f[name].astype(float) * scale
+                shown = axis.scatter(f["d23_deg"], f["d12_deg"], c=values, s=4, cmap=cmap, **limits)
+            if binary:
+                axis.legend(
+                    handles=[Patch(color=color, label=label) for label, color in (yes, no)],
+                    loc="upper right",
+                    fontsize=8,
+                )
+            else:
+                figure.colorbar(shown, ax=axis, shrink=0.8)
+            axis.set_title(title)
+            axis.set_xlabel("D23 [deg]")
+            axis.set_ylabel("D12 [deg]")
+        figure.suptitle(
+            f"{self.design.name}: maps over the proximal-link gaps (theta_1 = 0; "
+            f"margin {self.settings.margin * 1e3:g} mm, dexterity >= "
+            f"{self.settings.min_dexterity:g}); white: no such gaps"
+        )
+        return figure
 
     @classmethod
     def load(cls, path: str | Path) -> WorkspaceMap:
