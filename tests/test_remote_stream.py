@@ -428,3 +428,22 @@ def test_spm_serve_takes_a_deadline() -> None:
         process.terminate()
         process.communicate(timeout=30)
     assert process.returncode == 0
+
+
+# ----------------------------------------------------------------------- origins
+def test_a_browser_page_of_another_site_cannot_open_the_stream(server: BackgroundServer) -> None:
+    """Browsers send Origin on every WebSocket and CORS does not apply to them: the
+    server refuses other sites itself (its own pages and programs without an Origin
+    connect)."""
+    from websockets.exceptions import InvalidStatus
+
+    with pytest.raises(InvalidStatus) as refused:
+        connect(
+            f"{server.ws_url}/stream", origin="http://evil.example", open_timeout=ANSWER_TIMEOUT
+        )
+    assert refused.value.response.status_code == 403
+    host = server.url.removeprefix("http://")
+    with _open(server, origin=f"http://{host}") as ws:  # a page the server itself serves
+        assert _send(ws, {"type": "ping", "seq": 1})["type"] == "pong"
+    with _open(server) as ws:  # a program: no Origin header
+        assert _send(ws, {"type": "ping", "seq": 2})["type"] == "pong"

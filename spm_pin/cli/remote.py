@@ -4,6 +4,7 @@
 Command::
 
     spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic|dynamic] [--design NAME|FILE]
+              [--device DEV [--config FILE]] [--viewer] [--cors-origin ORIGIN ...]
               [--token-file FILE] [--deadline SECONDS]
 
 Serves until Ctrl-C (or SIGTERM), then exits with status 0. Binding an address other
@@ -11,6 +12,8 @@ than loopback needs a bearer token (``--token-file`` or the environment variable
 ``SPM_TOKEN``); without one the command exits with status 2 before binding anything.
 ``--deadline``: seconds the streaming client that holds the lease (``WS /stream``)
 may stay silent before the lease ends and the twin stops (default 0.5).
+``--device``: the servos on that port (:class:`~spm_pin.remote.ServoBackend`); a stop
+turns their torque off. ``--viewer``: a meshcat page follows the twin.
 """
 
 from __future__ import annotations
@@ -51,47 +54,89 @@ def _deadline(text: str) -> float:
     return value
 
 
+def _twin(args: argparse.Namespace, design: Any, stack: contextlib.ExitStack) -> Any:
+    """The twin the options ask for, closed by ``stack``."""
+    from ..remote import DynamicBackend, KinematicBackend
+
+    if args.device is None:
+        if args.config is not None:
+            raise _UsageError("--config is the servos' configuration: give --device too")
+        if args.sim == "dynamic":
+            return stack.enter_context(DynamicBackend(design))
+        return KinematicBackend(design)
+    from ..collision import build_robot
+    from ..hardware.config import HardwareConfig
+    from ..hardware.driver import ServoBus
+    from ..remote import ServoBackend
+
+    if args.sim != "kinematic":
+        raise _UsageError("--sim is the simulated twin: leave it out with --device")
+    config = HardwareConfig() if args.config is None else HardwareConfig.load(args.config)
+    config = config.replace(port=args.device)
+    bus = stack.enter_context(
+        ServoBus(
+            config.port,
+            config.ids,
+            baudrate=config.baudrate,
+            latency_timer_ms=config.latency_timer_ms,
+            retries=config.retries,
+            fast_sync_read=config.fast_sync_read,
+        )
+    )
+    return stack.enter_context(ServoBackend(bus, config, robot=build_robot(design)))
+
+
 def _run_serve(args: argparse.Namespace) -> int:
     try:  # imported here: FastAPI, uvicorn and pydantic are the remote extra
-        from ..remote import (
-            DynamicBackend,
-            KinematicBackend,
-            check_binding,
-            load_token,
-            serve,
-        )
+        from ..remote import check_binding, load_token, serve
     except ImportError as exc:
         raise _UsageError(str(exc)) from exc
     token = load_token(args.token_file)
     check_binding(args.host, args.port, token)
     design = _design(args)
-    backend: KinematicBackend | DynamicBackend = (
-        DynamicBackend(design) if args.sim == "dynamic" else KinematicBackend(design)
-    )
-    host = f"[{args.host}]" if ":" in args.host else args.host
-    url = f"http://{host}:{args.port}"
-    guarded = "bearer token required" if token is not None else "no token: loopback only"
-    print(
-        f"spm serve: the {backend.name} twin of design {design.name!r} at {url} "
-        f"(API docs at {url}/docs; {guarded}); Ctrl-C stops",
-        file=sys.stderr,
-        flush=True,
-    )
+    with contextlib.ExitStack() as stack:
+        backend = _twin(args, design, stack)
+        host = f"[{args.host}]" if ":" in args.host else args.host
+        url = f"http://{host}:{args.port}"
+        guarded = "bearer token required" if token is not None else "no token: loopback only"
+        where = f" on {args.device}" if args.device is not None else ""
+        print(
+            f"spm serve: the {backend.name} twin of design {design.name!r}{where} at {url} "
+            f"(API docs at {url}/docs; {guarded}); Ctrl-C stops",
+            file=sys.stderr,
+            flush=True,
+        )
+        if args.viewer:
+            try:
+                from ..remote.viewer import TwinViewer
 
-    def interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+                viewer = TwinViewer(backend)
+            except ImportError as exc:
+                raise _UsageError(
+                    f'--viewer needs meshcat ({exc}): pip install "spm-pin[viz]"'
+                ) from exc
+            viewer_url = viewer.start()
+            stack.callback(viewer.stop)
+            print(f"spm serve: the viewer follows the twin at {viewer_url}", file=sys.stderr)
 
-    # uvicorn shuts down gracefully on SIGINT and SIGTERM, then raises the signal again
-    # with the previous handlers: both end here as KeyboardInterrupt, exit status 0.
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        with contextlib.suppress(KeyboardInterrupt):
-            serve(backend, host=args.host, port=args.port, token=token, deadline=args.deadline)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        close = getattr(backend, "close", None)
-        if close is not None:
-            close()
+        def interrupt(signum: int, frame: Any) -> None:
+            raise KeyboardInterrupt
+
+        # uvicorn shuts down gracefully on SIGINT and SIGTERM, then raises the signal
+        # again with the previous handlers: both end here as KeyboardInterrupt, exit 0.
+        previous = signal.signal(signal.SIGTERM, interrupt)
+        try:
+            with contextlib.suppress(KeyboardInterrupt):
+                serve(
+                    backend,
+                    host=args.host,
+                    port=args.port,
+                    token=token,
+                    deadline=args.deadline,
+                    cors_origins=tuple(args.cors_origin or ()),
+                )
+        finally:
+            signal.signal(signal.SIGTERM, previous)
     return 0
 
 
@@ -132,5 +177,28 @@ def add_parser(commands: Any) -> None:
         metavar="SECONDS",
         help="seconds the streaming client that controls the twin (WS /stream) may stay "
         "silent before its lease ends and the twin stops (default: 0.5)",
+    )
+    serve.add_argument(
+        "--device",
+        metavar="DEV",
+        help="serve the real robot: the servos on this serial port (e.g. /dev/ttyUSB0), "
+        "kept in sync with the model; every goal passes the guard before the bus",
+    )
+    serve.add_argument(
+        "--config",
+        metavar="FILE",
+        help="the servos' configuration (TOML, as spm servo takes; with --device)",
+    )
+    serve.add_argument(
+        "--viewer",
+        action="store_true",
+        help="show the twin live in a meshcat viewer (viz extra)",
+    )
+    serve.add_argument(
+        "--cors-origin",
+        action="append",
+        metavar="ORIGIN",
+        help="let browser pages of this origin (e.g. http://127.0.0.1:8000) call the API; "
+        "may be repeated",
     )
     serve.set_defaults(run=_run_serve)

@@ -9,6 +9,9 @@ uvicorn and pydantic); ``import spm_pin`` never imports this package.
   provides.
 * :class:`DynamicBackend`: the closed-loop dynamics with the servos' model, simulated
   in real time (``spm serve --sim dynamic``): goals take the time they would take.
+* :class:`ServoBackend`: the real servos through the hardware layer, the model in the
+  loop (``spm serve --device DEV``); a stop turns their torque off.
+* :class:`TwinViewer`: a meshcat scene that follows a twin live (``--viewer``).
 * :func:`create_app`: the FastAPI application with the resources ``/state``,
   ``/joints``, ``/orientation``, ``/collisions``, ``/check`` and ``/stop`` (see
   :mod:`spm_pin.remote.app` for the status codes).
@@ -72,7 +75,9 @@ from .server import (
     load_token,
     serve,
 )
+from .servos import ServoBackend
 from .stream import DEFAULT_DEADLINE, DEFAULT_RATE, MAX_RATE, MIN_RATE, Lease, LeaseHeldError
+from .viewer import DEFAULT_VIEWER_RATE, TwinViewer
 
 #: The command that installs what this package needs.
 INSTALL_REMOTE = 'pip install "spm-pin[remote]"'
@@ -85,6 +90,7 @@ __all__ = [
     "DEFAULT_PORT",
     "DEFAULT_RATE",
     "DEFAULT_URL",
+    "DEFAULT_VIEWER_RATE",
     "INSTALL_REMOTE",
     "MAX_RATE",
     "MIN_RATE",
@@ -110,9 +116,11 @@ __all__ = [
     "PairState",
     "RemoteError",
     "RemoteRefusedError",
+    "ServoBackend",
     "Stream",
     "TwinBackend",
     "TwinState",
+    "TwinViewer",
     "check_binding",
     "create_app",
     "is_loopback",

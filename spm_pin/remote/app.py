@@ -40,8 +40,11 @@ Browser pages from other origins (``cors_origins``, off by default): a page serv
 from one of the listed origins may call the API (CORS headers; the preflight of a
 ``PUT`` with a JSON body or an ``Authorization`` header is answered before the token
 is checked, since browsers send it without credentials; the request itself still
-needs the token). ``WS /stream`` is not covered by CORS: browsers open WebSockets to
-any origin.
+needs the token). ``WS /stream`` is not covered by CORS (browsers open WebSockets to
+any site), so the server refuses a WebSocket whose ``Origin`` header (which browsers
+always send) is neither its own nor an allowed origin: a page of another site open in
+a browser on this machine cannot take the lease of a token-less loopback server.
+Programs that send no ``Origin`` are not affected.
 """
 
 from __future__ import annotations
@@ -260,6 +263,15 @@ def _check_origins(cors_origins: Sequence[str]) -> tuple[str, ...]:
     return origins
 
 
+def _origin_allowed(origin: str, websocket: WebSocket, allowed: tuple[str, ...]) -> bool:
+    """A browser's WebSocket may connect from the server's own pages or from an
+    allowed origin; browsers open WebSockets to any site, so this is checked here."""
+    if origin in allowed:
+        return True
+    host = websocket.headers.get("host")
+    return host is not None and origin in (f"http://{host}", f"https://{host}")
+
+
 def create_app(
     backend: TwinBackend | None = None,
     *,
@@ -461,6 +473,11 @@ def create_app(
 
     @app.websocket("/stream")
     async def stream(websocket: WebSocket) -> None:
+        origin = websocket.headers.get("origin")
+        if origin is not None and not _origin_allowed(origin, websocket, origins):
+            # A browser page of another site: refused before the handshake (HTTP 403).
+            await websocket.close(code=1008, reason=f"origin {origin} is not allowed")
+            return
         if hub.states is None:
             hub.states = StateCache(twin)
         await stream_session(websocket, hub)

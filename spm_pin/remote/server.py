@@ -16,7 +16,7 @@ import os
 import socket
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -132,6 +132,7 @@ def serve(
     max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
     deadline: float = DEFAULT_DEADLINE,
     log_level: str = "info",
+    cors_origins: Sequence[str] = (),
 ) -> None:
     """Serve a twin over HTTP until interrupted (Ctrl-C or SIGTERM).
 
@@ -144,12 +145,20 @@ def serve(
         deadline: Seconds a streaming client holding the lease may stay silent
             before the lease ends and the twin stops.
         log_level: uvicorn's log level (``"info"``, ``"warning"``, ...).
+        cors_origins: Origins of browser pages allowed to call the API (see
+            :func:`~spm_pin.remote.create_app`).
 
     Raises:
         InputError: a non-loopback ``host`` without a token (nothing is bound).
     """
     check_binding(host, port, token)
-    app = create_app(backend, token=token, max_body_bytes=max_body_bytes, deadline=deadline)
+    app = create_app(
+        backend,
+        token=token,
+        max_body_bytes=max_body_bytes,
+        deadline=deadline,
+        cors_origins=cors_origins,
+    )
     uvicorn.Server(_config(app, host, port, log_level)).run()
 
 
@@ -169,6 +178,7 @@ class BackgroundServer:
         max_body_bytes: Largest request body accepted [bytes].
         deadline: Seconds a streaming client holding the lease may stay silent.
         timeout: Seconds to wait for the server to start and to stop.
+        cors_origins: Origins of browser pages allowed to call the API.
 
     Attributes:
         app: The application served.
@@ -187,13 +197,18 @@ class BackgroundServer:
         max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
         deadline: float = DEFAULT_DEADLINE,
         timeout: float = 30.0,
+        cors_origins: Sequence[str] = (),
     ) -> None:
         check_binding(host, port, token)
         self.host = host
         self.port = port
         self.timeout = float(timeout)
         self.app = create_app(
-            backend, token=token, max_body_bytes=max_body_bytes, deadline=deadline
+            backend,
+            token=token,
+            max_body_bytes=max_body_bytes,
+            deadline=deadline,
+            cors_origins=cors_origins,
         )
         self._server = uvicorn.Server(_config(self.app, host, port, "warning"))
         self._thread: threading.Thread | None = None
