@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import html
 import io
 import json
 import math
@@ -28,6 +29,7 @@ from spm_pin.rotations import (
     quaternion_from_matrix,
     rpy_from_matrix,
 )
+from spm_pin.study.pictures import INSTALL_PICTURES
 
 #: Tolerances, by what they compare.
 TOL = {
@@ -297,8 +299,24 @@ def test_demo_text(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """``spm demo --quick``: the study in text, progress on stderr, the report written.
     (tests/test_demo.py checks the default run's numbers and files in depth.)"""
     directory = tmp_path / "new" / "dir"
-    status, out, err = run(capsys, "demo", "--quick", "--out", str(directory))
+    # no browser for the scenes' pictures (a Chromium that is not there): the demo
+    # goes on and says so in one line (tests/test_demo.py checks the pictures)
+    missing = tmp_path / "no-chromium"
+    status, out, err = run(
+        capsys, "demo", "--quick", "--out", str(directory), "--chromium", str(missing)
+    )
     assert status == 0, err
+    notes = [line for line in out.splitlines() if line.startswith("No pictures")]
+    reason = f"(no Chromium at {re.escape(repr(str(missing)))}|Playwright is not installed)"
+    assert len(notes) == 1
+    assert re.fullmatch(
+        f"No pictures of the 3-D scenes: {reason}. They need Playwright and a Chromium: "
+        f"{re.escape(INSTALL_PICTURES)}.",
+        notes[0],
+    )
+    report = (directory / "index.html").read_text(encoding="utf-8")
+    assert report.count(html.escape(notes[0])) == 1
+    assert report.count("<iframe") == 3 and not list(directory.glob("scenes/*.png"))
     for section in (
         "Forward kinematics at theta = [60, 90, 120] deg, three ways",
         "Every real assembly mode",
@@ -329,7 +347,8 @@ def test_demo_text(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert data["colliding_input"]["theta_deg"] == COLLIDING_DEG
     assert data["colliding_input"]["home_mode_exists"] is False
     assert data["workspace"]["step_deg"] == 10.0
-    assert (directory / "index.html").is_file()
+    assert data["report"]["pictures"] == {} and data["report"]["pictures_note"] in out
+    assert data["skipped"] == []
 
 
 # --------------------------------------------------------------------------- errors

@@ -123,7 +123,7 @@ def test_default_run_is_complete(default_run: dict[str, Any]) -> None:
     (docs/demo.md: about 15 s), so the record's times are checked for form only."""
     record = default_run["record"]
     assert list(record) == RECORD_KEYS
-    assert list(record["timing_s"]) == SECTION_KEYS
+    assert list(record["timing_s"]) == [*SECTION_KEYS, "pictures"]
     times = [*record["timing_s"].values(), record["runtime_s"]]
     assert all(isinstance(t, float) and math.isfinite(t) for t in times)
     assert min(times) >= 0.0 and sum(record["timing_s"].values()) <= record["runtime_s"]
@@ -519,6 +519,108 @@ def test_report_offline_in_chromium(out: Path, record: dict[str, Any]) -> None:
     assert sorted(black) == record["colliding_input"]["drawn_black"]
     assert refused == []
     assert errors == []
+
+
+#: The scenes of the report and the pictures beside them.
+PICTURES = {
+    f"scenes/{name}.html": f"scenes/{name}.png"
+    for name in ("demo_input", "motion", "colliding_input")
+}
+#: What the pictures are checked for: their size [px]; the share of pixels that differ
+#: by more than ``background_step`` (0-255) from their row's median (the background's
+#: vertical gradient and grid); the share of near-black pixels (every channel below
+#: ``dark``) inside the middle of the picture, away from the key and captions.
+PICTURE = {
+    "size": (960, 720),
+    "background_step": 40,
+    "drawn_share": 0.05,
+    "dark": 50,
+    "dark_share_colliding": 0.01,
+    "dark_ratio": 20.0,
+}
+
+
+def _rgb(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        assert image.size == PICTURE["size"], path
+        return np.asarray(image.convert("RGB"), dtype=np.int16)
+
+
+def _dark_share(pixels: np.ndarray) -> float:
+    height, width, _ = pixels.shape
+    middle = pixels[height // 5 : 6 * height // 7, width // 5 : 4 * width // 5]
+    return float((middle.max(axis=-1) < PICTURE["dark"]).mean())
+
+
+def test_scene_pictures(out: Path, record: dict[str, Any]) -> None:
+    """A picture of each 3-D scene beside it and in the report, linking to the scene:
+    not blank, and the colliding input's picture shows its near-black links."""
+    report = record["report"]
+    if not report["pictures"]:
+        if _on_ci():
+            pytest.fail(f"no pictures under CI: {report['pictures_note']}")
+        pytest.skip(f"no pictures: {report['pictures_note']}")
+    assert report["pictures"] == PICTURES
+    assert report["pictures_note"] is None
+    assert set(PICTURES.values()) <= set(report["files"])
+    assert 0.0 < record["timing_s"]["pictures"] < record["runtime_s"]
+    pixels = {}
+    for scene, picture in PICTURES.items():
+        pixels[scene] = _rgb(out / picture)
+        median = np.median(pixels[scene], axis=1, keepdims=True)
+        drawn = np.abs(pixels[scene] - median).max(axis=-1) > PICTURE["background_step"]
+        assert drawn.mean() > PICTURE["drawn_share"], (picture, drawn.mean())
+    assert len({p.tobytes() for p in pixels.values()}) == len(PICTURES)
+    colliding = _dark_share(pixels["scenes/colliding_input.html"])
+    safe = _dark_share(pixels["scenes/demo_input.html"])
+    assert colliding > PICTURE["dark_share_colliding"], colliding
+    assert colliding > PICTURE["dark_ratio"] * safe, (colliding, safe)
+    # in the report: each picture in a link to its scene, with alt text and a caption
+    text = (out / "index.html").read_text(encoding="utf-8")
+    for scene, picture in PICTURES.items():
+        match = re.search(
+            rf'<figure><div class="pair"><a href="{scene}"><img src="{picture}" '
+            r'width="960" height="720" alt="Picture of the 3-D scene: ([^"]+)"></a>'
+            rf'<iframe src="{scene}" [^>]*></iframe></div><figcaption>([^<]+)',
+            text,
+        )
+        assert match is not None, picture
+        alt, caption = match.groups()
+        assert caption.startswith(alt), (alt, caption)
+    assert text.count("First a picture of the scene (it reads without WebGL)") == len(PICTURES)
+    assert "No pictures" not in text
+    motion = record["motion"]["path"][(SAMPLES - 1) // 2]["theta_deg"]
+    np.testing.assert_allclose(motion, [30.0, 45.0, 60.0], atol=TOL["json"])
+    assert "The picture shows sample 12, theta = [30, 45, 60] deg." in text
+
+
+def test_pictures_turned_off_or_without_a_browser(tmp_path: Path) -> None:
+    """No picture when turned off or without a Chromium: one line says why, nothing
+    fails (the demo run without a browser is tests/test_cli.py::test_demo_text)."""
+    from spm_pin.study import DemoSection, ReportItem
+    from spm_pin.study.pictures import INSTALL_PICTURES, take_pictures
+    from spm_pin.study.report import report_html
+
+    scene = tmp_path / "scenes" / "one.html"
+    scene.parent.mkdir()
+    scene.write_text("<!DOCTYPE html><html></html>", encoding="utf-8")
+    section = DemoSection("one", "One", {}, scenes=(ReportItem("scenes/one.html", "One."),))
+    off = take_pictures(DemoContext(out=tmp_path, pictures=False), [section])
+    assert off.files == {} and off.note == "No pictures of the 3-D scenes: turned off."
+    missing = tmp_path / "no-chromium"
+    absent = take_pictures(DemoContext(out=tmp_path, chromium=missing), [section])
+    assert absent.files == {}
+    assert absent.note is not None and absent.note.startswith("No pictures of the 3-D scenes: ")
+    assert absent.note.endswith(f"They need Playwright and a Chromium: {INSTALL_PICTURES}.")
+    assert take_pictures(DemoContext(pictures=False), [section]).note is None  # no folder
+    page = report_html(DemoContext(out=tmp_path), [section], [], 1.0, absent)
+    assert page.count(html.escape(absent.note)) == 1
+    assert "<img" not in page and '<iframe src="scenes/one.html"' in page
+    assert not list(tmp_path.rglob("*.png"))
+    with pytest.raises(InputError, match=r"pictures must be True or False, got 'no'"):
+        DemoContext(pictures="no")  # type: ignore[arg-type]
 
 
 # ------------------------------------------------- without optional dependencies

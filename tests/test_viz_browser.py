@@ -386,6 +386,29 @@ def test_screenshot_of_a_saved_scene(browser: Any, robot: SPMRobot, tmp_path: Pa
         screenshot(html, tmp_path / "bad.png", size=(0, 240), browser=browser)
     with pytest.raises(FileNotFoundError, match=r"no such HTML file: .*missing\.html"):
         screenshot(tmp_path / "missing.html", tmp_path / "bad.png", browser=browser)
+    with pytest.raises(spm.InputError, match=r"^timeout_s must be a positive number \[s\]"):
+        screenshot(html, tmp_path / "bad.png", browser=browser, timeout_s=0.0)
+    # with the overlays: the key at the top left, the same size, the controls hidden
+    page = screenshot(html, tmp_path / "page.png", size=(320, 240), browser=browser, overlays=True)
+    with Image.open(page) as image:
+        assert image.size == (320, 240)
+        overlaid = np.asarray(image.convert("RGB"), dtype=np.int16)
+    changed = np.any(np.abs(overlaid - pixels) > 8, axis=-1)
+    assert changed[:60, :100].mean() > 0.2  # the key
+    # meshcat's control panel (a black bar at the top right) and the view buttons hidden
+    assert not np.any(overlaid[:20, 200:].max(axis=-1) < 40)
+    assert not changed[-20:, -60:].any()
+
+
+def test_chromium_that_is_not_there(tmp_path: Path) -> None:
+    from spm_pin.viz import ViewerError
+    from spm_pin.viz.browser import chromium
+
+    with (
+        pytest.raises(ViewerError, match=r"^no Chromium at '.*no-chromium'"),
+        chromium(tmp_path / "no-chromium"),
+    ):
+        pass
 
 
 # ----------------------------------------------------------------- views and the key

@@ -23,6 +23,10 @@ def _run_demo(args: argparse.Namespace) -> int:
     changes: Record = {"out": Path(args.out)}
     if args.workspace_step is not None:
         changes["workspace_step_deg"] = args.workspace_step
+    if args.no_pictures:
+        changes["pictures"] = False
+    if args.chromium is not None:
+        changes["chromium"] = args.chromium
     ctx = DemoContext.quick(**changes) if args.quick else DemoContext(**changes)
     result = run_demo(ctx, progress="off" if args.quiet else "auto")
     print(_dumps(result.record) if args.json else "\n".join(result.lines))
@@ -42,7 +46,9 @@ def add_parser(commands: Any) -> None:
         "kinematics at theta = [60, 90, 120] deg analytically, by Newton projection and by "
         "MuJoCo; the motion from home at 25 samples; the colliding input [60, 90, 220] deg; "
         "the safe workspace; the actuator torques. Writes DIR/index.html (plots and "
-        "meshcat scenes, works offline) and DIR/demo.json. Progress goes to stderr. "
+        "meshcat scenes, works offline) and DIR/demo.json. With Playwright and a Chromium "
+        '(pip install "spm-pin[browser]"; Debian: apt install chromium) a PNG picture of '
+        "each scene goes beside it and into the report. Progress goes to stderr. "
         "Without mujoco, matplotlib or meshcat the parts that need them are skipped "
         '(pip install "spm-pin[demo]" brings them). Exit status 1 when the three ways '
         "of solving the loops disagree beyond their tolerances.",
@@ -60,6 +66,17 @@ def add_parser(commands: Any) -> None:
         type=_number,
         metavar="DEG",
         help="grid step of the workspace map [deg] (default 2; 10 with --quick)",
+    )
+    demo.add_argument(
+        "--no-pictures",
+        action="store_true",
+        help="no PNG picture of each 3-D scene (they are rendered in a headless Chromium "
+        "through Playwright when both are there)",
+    )
+    demo.add_argument(
+        "--chromium",
+        metavar="PATH",
+        help="the Chromium that renders the pictures (default: chromium on the PATH)",
     )
     demo.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _add_json_option(demo)

@@ -24,7 +24,9 @@ future work:
 6. the actuator torques along the motion (:func:`~spm_pin.inverse_dynamics`) against
    the XM540-W150 servo's torque-speed envelope, with a verdict;
 7. an HTML report (``index.html``, PNG plots beside it and meshcat scenes in iframes,
-   every file self-contained, so the folder works offline) and ``demo.json``.
+   every file self-contained, so the folder works offline), with a PNG picture of
+   each scene made in a headless Chromium when Playwright and a Chromium are there,
+   and ``demo.json``.
 
 MuJoCo, matplotlib and meshcat are optional (the ``demo`` extra): without one of them
 the demo runs everything else and lists what it skipped and what to install.
@@ -39,7 +41,8 @@ tenth of a radian). The demo reports both runs.
 The package holds the study by concept: ``context`` (the settings, :class:`DemoContext`
 and the section and result types), ``sections`` (:data:`DEMO_SECTIONS`), ``mujoco``
 (the MuJoCo cross-check), ``plots``, ``report`` (``index.html`` and the text output),
-``run`` (:func:`run_demo`) and ``_extras`` (the optional dependencies).
+``pictures`` (the scenes' pictures), ``run`` (:func:`run_demo`) and ``_extras`` (the
+optional dependencies).
 """
 
 from __future__ import annotations

@@ -98,10 +98,16 @@ class ReportItem:
     Attributes:
         path: Path relative to the report folder (``/``-separated).
         caption: What it shows.
+        picture_time_s: For an animated scene, the time its picture shows [s]
+            (default: the first frame).
+        picture_note: What the scene's picture shows, when the caption does not say
+            (an animation's frame).
     """
 
     path: str
     caption: str
+    picture_time_s: float | None = None
+    picture_note: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,6 +162,11 @@ class DemoContext:
         torque_rate_hz: Samples per second of the torque computation [Hz].
         mujoco_settle_steps: MuJoCo steps per sample of the cross-check.
         workspace_progress: Show the workspace map's own progress bar (tqdm).
+        pictures: Render a PNG picture of each 3-D scene beside it (in a headless
+            Chromium, :mod:`spm_pin.viz.browser`), so the report reads without WebGL.
+            Without Playwright or a Chromium the report says so and goes on.
+        chromium: The Chromium to render them with: a path or a name on the PATH
+            (default: the first of :data:`~spm_pin.viz.browser.CHROMIUM_NAMES`).
     """
 
     design: SPMDesign = dataclasses.field(default_factory=SPMDesign.prototype)
@@ -168,6 +179,8 @@ class DemoContext:
     torque_rate_hz: float = 500.0
     mujoco_settle_steps: int = MUJOCO_SETTLE_STEPS
     workspace_progress: bool = False
+    pictures: bool = True
+    chromium: str | Path | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) or self.samples < 2:
@@ -197,6 +210,20 @@ class DemoContext:
                     argument=name,
                     value=value,
                 )
+        if not isinstance(self.pictures, bool):
+            raise InputError(
+                f"pictures must be True or False, got {self.pictures!r}",
+                argument="pictures",
+                value=self.pictures,
+            )
+        if self.chromium is not None and (
+            not isinstance(self.chromium, (str, Path)) or not str(self.chromium)
+        ):
+            raise InputError(
+                f"chromium must be a path or a program name, got {self.chromium!r}",
+                argument="chromium",
+                value=self.chromium,
+            )
         if self.out is not None:
             object.__setattr__(self, "out", Path(self.out))
 

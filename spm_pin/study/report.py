@@ -9,8 +9,9 @@ from pathlib import Path
 from .._version import __version__
 from ._extras import INSTALL_DEMO, Skipped
 from .context import FILES as _FILES
-from .context import DemoContext, DemoSection
+from .context import DemoContext, DemoSection, ReportItem
 from .context import degrees_text as _degrees_text
+from .pictures import PICTURE_SIZE, ScenePictures
 from .tables import section_tables as _section_tables
 
 __all__ = ["report_files", "report_html", "text_output", "unique_skipped"]
@@ -34,12 +35,33 @@ p.note, td.note { font-size: 0.85rem; color: #555; }
 figure { margin: 1.2rem 0; }
 figure img { max-width: 100%; border: 1px solid #ddd; }
 iframe { width: 100%; height: 30rem; border: 1px solid #ccd; }
+.pair { display: grid; grid-template-columns: repeat(auto-fit, minmax(22rem, 1fr));
+        gap: 0.8rem; align-items: start; }
+.pair img { width: 100%; height: auto; display: block; }
+.pair iframe { height: auto; aspect-ratio: 4 / 3; }
 figcaption { font-size: 0.9rem; color: #555; }
 .skipped { background: #fff4e0; border-left: 4px solid #f0a020; padding: 0.5rem 0.8rem; }
 """
 
 
-def _section_html(section: DemoSection) -> str:
+def _scene_html(item: ReportItem, picture: str | None) -> str:
+    path, caption = html.escape(item.path), html.escape(item.caption)
+    frame = f'<iframe src="{path}" title="{caption}" loading="lazy"></iframe>'
+    link = f'<a href="{path}">Open the scene on its own page.</a>'
+    if picture is None:
+        return f"<figure>{frame}<figcaption>{caption} {link}</figcaption></figure>"
+    width, height = PICTURE_SIZE
+    note = f" {html.escape(item.picture_note)}" if item.picture_note else ""
+    return (
+        f'<figure><div class="pair"><a href="{path}"><img src="{html.escape(picture)}" '
+        f'width="{width}" height="{height}" alt="Picture of the 3-D scene: {caption}"></a>'
+        f"{frame}</div><figcaption>{caption}{note} First a picture of the scene (it reads "
+        "without WebGL), then the scene itself: drag to orbit, scroll to zoom. "
+        f"{link}</figcaption></figure>"
+    )
+
+
+def _section_html(section: DemoSection, pictures: ScenePictures) -> str:
     parts = [f'<section id="{section.key}">', f"<h2>{html.escape(section.title)}</h2>"]
     parts.append(_section_tables(section))
     for item in section.figures:
@@ -48,13 +70,7 @@ def _section_html(section: DemoSection) -> str:
             f"<figcaption>{html.escape(item.caption)}</figcaption></figure>"
         )
     for item in section.scenes:
-        path = html.escape(item.path)
-        parts.append(
-            f'<figure><iframe src="{path}" title="{html.escape(item.caption)}" '
-            'loading="lazy"></iframe>'
-            f"<figcaption>{html.escape(item.caption)} "
-            f'<a href="{path}">Open the scene on its own page.</a></figcaption></figure>'
-        )
+        parts.append(_scene_html(item, pictures.files.get(item.path)))
     for skip in section.skipped:
         parts.append(_skipped_html(skip))
     parts.append("</section>")
@@ -69,7 +85,11 @@ def _skipped_html(skip: Skipped) -> str:
 
 
 def report_html(
-    ctx: DemoContext, sections: list[DemoSection], skipped: list[Skipped], seconds: float
+    ctx: DemoContext,
+    sections: list[DemoSection],
+    skipped: list[Skipped],
+    seconds: float,
+    pictures: ScenePictures | None = None,
 ) -> str:
     where = _degrees_text(ctx.theta_deg)
     contents = "".join(
@@ -82,7 +102,11 @@ def report_html(
             "; ".join(html.escape(f"{s.part} ({s.missing})") for s in skipped)
             + f". Install them with <code>{html.escape(INSTALL_DEMO)}</code>.</p>"
         )
-    body = "\n".join(_section_html(section) for section in sections)
+    if pictures is None:
+        pictures = ScenePictures({}, None, 0.0)
+    if pictures.note is not None:
+        missing += f'<p class="skipped">{html.escape(pictures.note)}</p>'
+    body = "\n".join(_section_html(section, pictures) for section in sections)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -119,12 +143,16 @@ def unique_skipped(skipped: list[Skipped]) -> list[Skipped]:
     return list(seen.values())
 
 
-def report_files(out: Path, sections: list[DemoSection]) -> dict[str, Path]:
+def report_files(
+    out: Path, sections: list[DemoSection], pictures: ScenePictures | None = None
+) -> dict[str, Path]:
     """Every file of the report, by its path relative to ``out``."""
     names = [_FILES["index"], _FILES["record"]]
     for section in sections:
         names += [item.path for item in (*section.figures, *section.scenes)]
         names += list(section.files)
+    if pictures is not None:
+        names += list(pictures.files.values())
     return {name: out / name for name in dict.fromkeys(names)}
 
 
@@ -135,6 +163,7 @@ def text_output(
     failed: list[str],
     files: dict[str, Path],
     seconds: float,
+    pictures: ScenePictures | None = None,
 ) -> list[str]:
     where = _degrees_text(ctx.theta_deg)
     lines = [
@@ -150,6 +179,8 @@ def text_output(
         lines.append("Skipped (optional dependencies missing):")
         lines += [f"  {skip.part}: needs {skip.missing}" for skip in skipped]
         lines.append(f"  install them with: {INSTALL_DEMO}")
+    if pictures is not None and pictures.note is not None:
+        lines.append(pictures.note)
     if _FILES["index"] in files:
         index = files[_FILES["index"]]
         lines.append(f"report: {index} (open it in a browser; it works offline)")

@@ -15,6 +15,7 @@ from .._records import plain as _plain
 from .._version import __version__
 from .context import FILES as _FILES
 from .context import DemoContext, DemoResult, DemoSection
+from .pictures import take_pictures as _take_pictures
 from .report import report_files as _report_files
 from .report import report_html as _report_html
 from .report import text_output as _text
@@ -59,6 +60,11 @@ class _Progress:
                 flush=True,
             )
 
+    def extra(self, what: str, seconds: float) -> None:
+        """A step after the sections (not counted in the bar)."""
+        if self.mode == "lines":
+            print(f"spm demo: {what} ({seconds:.1f} s)", file=self.stream, flush=True)
+
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
@@ -70,7 +76,8 @@ def run_demo(
     progress: ProgressMode = "auto",
     stream: IO[str] | None = None,
 ) -> DemoResult:
-    """Run the study: every section, then the report in ``ctx.out``.
+    """Run the study: every section, then the report in ``ctx.out`` (with a picture of
+    each 3-D scene when ``ctx.pictures`` and a browser allow, :mod:`.pictures`).
 
     Args:
         ctx: What to run (default :class:`DemoContext`, the published study, no files).
@@ -103,6 +110,11 @@ def run_demo(
             timing[section.key] = time.perf_counter() - start
             sections.append(section)
             bar.done(section.title, timing[section.key])
+        bar.start("pictures of the scenes")
+        pictures = _take_pictures(ctx, sections)
+        timing["pictures"] = pictures.seconds
+        if pictures.files:
+            bar.extra(f"pictures of the {len(pictures.files)} 3-D scenes", pictures.seconds)
     finally:
         bar.close()
     skipped = _unique([skip for section in sections for skip in section.skipped])
@@ -125,14 +137,16 @@ def run_demo(
     }
     files: dict[str, Path] = {}
     if ctx.out is not None:
-        files = _report_files(ctx.out, sections)
+        files = _report_files(ctx.out, sections, pictures)
         record["report"] = {
             "out": str(ctx.out),
             "index_html": str(files[_FILES["index"]]),
             "files": sorted(files),
+            "pictures": pictures.files,
+            "pictures_note": pictures.note,
         }
         seconds = time.perf_counter() - begin
-        html_text = _report_html(ctx, sections, skipped, seconds)
+        html_text = _report_html(ctx, sections, skipped, seconds, pictures)
         files[_FILES["index"]].write_text(html_text, encoding="utf-8")
     seconds = time.perf_counter() - begin
     record["runtime_s"] = seconds
@@ -140,7 +154,7 @@ def run_demo(
         files[_FILES["record"]].write_text(_dumps(record) + "\n", encoding="utf-8")
     return DemoResult(
         record=_plain(record),
-        lines=_text(ctx, sections, skipped, failed, files, seconds),
+        lines=_text(ctx, sections, skipped, failed, files, seconds, pictures),
         sections=sections,
         skipped=skipped,
         failed_checks=failed,

@@ -348,14 +348,18 @@ def _demo_motion(ctx: DemoContext) -> DemoSection:
     if target is not None:
         viz = ctx.visualizer
         viz.set_overlays(joint_axes=True, platform_frame=False)
-        viz.animate(path, dt=2.0 / (ctx.samples - 1), repetitions=1000)
+        animation = viz.animate(path, dt=2.0 / (ctx.samples - 1), repetitions=1000)
         viz.save_html(target, title="spm-pin demo: the motion")
         summary["scene"] = _FILES["motion_scene"]
+        half = (ctx.samples - 1) // 2  # the picture: half way, unlike the other scenes
         scenes.append(
             ReportItem(
                 _FILES["motion_scene"],
                 f"The motion from home to theta = {_degrees_text(ctx.theta_deg)} deg, "
                 f"{ctx.samples} samples (the animation repeats; drag to orbit).",
+                picture_time_s=float(animation.times[half]),
+                picture_note=f"The picture shows sample {half}, "
+                f"theta = {_degrees_text(path_deg[half].tolist())} deg.",
             )
         )
     elif skipped_scene is not None:

@@ -26,7 +26,14 @@ from typing import Any
 from ..errors import InputError
 from .server import ViewerError
 
-__all__ = ["CHROMIUM_ARGS", "CHROMIUM_NAMES", "chromium", "find_chromium", "screenshot"]
+__all__ = [
+    "CHROMIUM_ARGS",
+    "CHROMIUM_NAMES",
+    "DEFAULT_TIMEOUT_S",
+    "chromium",
+    "find_chromium",
+    "screenshot",
+]
 
 #: Executable names tried, in order, on the PATH.
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
@@ -53,8 +60,10 @@ _CAPTURE = """(t) => {
     }
     return viewer.capture_image();
 }"""
-#: How long to wait for a page to build its scene [ms].
-_LOAD_TIMEOUT_MS = 30_000
+#: Hides the page's controls (the view buttons, meshcat's control panel) for a picture.
+_HIDE_CONTROLS = "#spm-views, .dg { display: none !important; }"
+#: How long Chromium may take to start, and a page to load and build its scene [s].
+DEFAULT_TIMEOUT_S = 30.0
 
 
 def find_chromium() -> str | None:
@@ -67,33 +76,66 @@ def find_chromium() -> str | None:
 
 
 @contextlib.contextmanager
-def chromium(executable: str | Path | None = None) -> Iterator[Any]:
+def chromium(
+    executable: str | Path | None = None, *, timeout_s: float = DEFAULT_TIMEOUT_S
+) -> Iterator[Any]:
     """A headless Chromium (a Playwright ``Browser``), closed on exit.
 
     Args:
-        executable: The Chromium to run (default: :func:`find_chromium`).
+        executable: The Chromium to run: a path or a name on the PATH (default:
+            :func:`find_chromium`).
+        timeout_s: How long it may take to start [s].
 
     Raises:
-        ViewerError: Playwright is not installed or no Chromium was found.
+        InputError: bad timeout.
+        ViewerError: Playwright is not installed, no Chromium was found or it did not
+            start.
     """
+    timeout_ms = _timeout_ms(timeout_s)
     try:
         from playwright.sync_api import sync_playwright
     except ImportError as exc:
         raise ViewerError(
             f"pictures need Playwright for Python ({exc}); install it with: pip install playwright"
         ) from exc
-    path = str(executable) if executable is not None else find_chromium()
+    if executable is not None:
+        path = shutil.which(str(executable))
+        if path is None:
+            raise ViewerError(f"no Chromium at {str(executable)!r} (not an executable file)")
+    else:
+        path = find_chromium()
     if path is None:
         raise ViewerError(
             f"no Chromium found on the PATH (tried {', '.join(CHROMIUM_NAMES)}); install one "
             "(Debian: apt install chromium) or pass executable="
         )
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=path, args=list(CHROMIUM_ARGS))
+        try:
+            browser = playwright.chromium.launch(
+                executable_path=path, args=list(CHROMIUM_ARGS), timeout=timeout_ms
+            )
+        except Exception as exc:  # playwright's Error: no such browser, crash, timeout
+            first = str(exc).strip().splitlines()[:1] or [type(exc).__name__]
+            raise ViewerError(f"Chromium {path} did not start: {first[0]}") from exc
         try:
             yield browser
         finally:
             browser.close()
+
+
+def _timeout_ms(timeout_s: float) -> float:
+    if (
+        isinstance(timeout_s, bool)
+        or not isinstance(timeout_s, (int, float))
+        or not math.isfinite(timeout_s)
+        or timeout_s <= 0
+    ):
+        raise InputError(
+            f"timeout_s must be a positive number [s], got {timeout_s!r}",
+            argument="timeout_s",
+            value=timeout_s,
+        )
+    return 1000.0 * float(timeout_s)
 
 
 def _only(route: Any, url: str) -> None:
@@ -125,10 +167,14 @@ def screenshot(
     size: tuple[int, int] = (800, 600),
     time: float | None = None,
     browser: Any = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    overlays: bool = False,
 ) -> Path:
     """Render a saved scene (:meth:`~spm_pin.viz.Visualizer.save_html`) to a PNG file.
 
-    The picture is the viewer's canvas only (no controls). The page is opened with
+    The picture is the viewer's canvas only, or with ``overlays`` the page as it
+    shows: the canvas with the key, the pose caption and the contact list, without
+    the controls (view buttons, meshcat's control panel). The page is opened with
     every network request blocked: a saved scene needs none.
 
     Args:
@@ -137,16 +183,20 @@ def screenshot(
         size: Width and height [px].
         time: For an animation, the time to show [s] (default: 0, its first frame).
         browser: A Playwright ``Browser`` to reuse (default: start :func:`chromium`).
+        timeout_s: How long the page may take to load and build its scene, and
+            Chromium to start [s].
+        overlays: Keep the page's key, caption and contact list in the picture.
 
     Returns:
         The PNG path.
 
     Raises:
-        InputError: bad size or time.
+        InputError: bad size, time or timeout.
         FileNotFoundError: no such HTML file.
         ViewerError: no Playwright or Chromium, or the page did not build its scene.
     """
     width, height = _check_size(size)
+    timeout_ms = _timeout_ms(timeout_s)
     if time is not None and (
         isinstance(time, bool)
         or not isinstance(time, (int, float))
@@ -158,20 +208,34 @@ def screenshot(
     if not source.is_file():
         raise FileNotFoundError(2, "no such HTML file", str(source))
     if browser is None:
-        with chromium() as own:
-            return screenshot(source, png, size=size, time=time, browser=own)
+        with chromium(timeout_s=timeout_s) as own:
+            return screenshot(
+                source,
+                png,
+                size=size,
+                time=time,
+                browser=own,
+                timeout_s=timeout_s,
+                overlays=overlays,
+            )
     page = browser.new_page(viewport={"width": width, "height": height})
     try:
+        page.set_default_timeout(timeout_ms)
         url = source.as_uri()
         page.route("**/*", lambda route: _only(route, url))
-        page.goto(url)
         try:
-            page.wait_for_function("window.spm_scene_ready === true", timeout=_LOAD_TIMEOUT_MS)
+            page.goto(url)
+            page.wait_for_function("window.spm_scene_ready === true", timeout=timeout_ms)
         except Exception as exc:  # playwright's TimeoutError
-            raise ViewerError(f"{source} did not build a scene (not an spm-pin scene?)") from exc
+            raise ViewerError(
+                f"{source} did not build a scene within {timeout_s:g} s (not an spm-pin scene?)"
+            ) from exc
+        if overlays:
+            page.add_style_tag(content=_HIDE_CONTROLS)
         data_url = page.evaluate(_CAPTURE, 0.0 if time is None else float(time))
+        data = page.screenshot(type="png") if overlays else None
     finally:
         page.close()
     target = Path(png)
-    target.write_bytes(base64.b64decode(data_url.split(",", 1)[1]))
+    target.write_bytes(data if data is not None else base64.b64decode(data_url.split(",", 1)[1]))
     return target
