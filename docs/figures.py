@@ -1,13 +1,18 @@
-"""Draw the conventions figure of the documentation from the library's own kinematics.
+"""Draw the figures of the documentation from the library's own computations.
 
-    python docs/figures.py [--out docs/images]
+    python docs/figures.py [--out docs/images] [--workspace-step 2]
 
-writes ``conventions.png``: on the left the unit sphere around the centre of rotation O
-with the joint axes u, w_i and v_i of the prototype at home and the angles alpha1,
-alpha2 and beta of leg 1; on the right the view from above with the leg azimuths
-eta_i, the direction of a positive input angle theta_1 and the gaps between the
-proximal links. Every vector is computed by spm-pin (needs matplotlib:
-``pip install "spm-pin[plot]"``).
+writes ``conventions.png`` and ``workspace_gap_map.png``. ``conventions.png``: on the
+left the unit sphere around the centre of rotation O with the joint axes u, w_i and v_i
+of the prototype at home and the angles alpha1, alpha2 and beta of leg 1; on the right
+the view from above with the leg azimuths eta_i, the direction of a positive input
+angle theta_1 and the gaps between the proximal links. Every vector is computed by
+spm-pin. ``workspace_gap_map.png``: the prototype's workspace map over the gaps
+between neighbouring proximal links (a ``--workspace-step`` grid, 2 deg by default, as
+in ``spm demo``), drawn by :meth:`spm_pin.workspace.WorkspaceMap.gap_figure`. Both need
+matplotlib (``pip install "spm-pin[plot]"``).
+
+The pictures of the robot (``spm_*.png``) come from ``examples/visualize.py --png``.
 """
 
 from __future__ import annotations
@@ -226,10 +231,33 @@ def conventions_figure(out: Path) -> Path:
     return path
 
 
+def workspace_figure(out: Path, step_deg: float = 2.0) -> Path:
+    """Write ``workspace_gap_map.png`` (the prototype's gap map) into ``out``; its path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from spm_pin.workspace import workspace_map
+
+    result = workspace_map(step_deg=step_deg, progress=False)
+    figure = result.gap_figure()
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "workspace_gap_map.png"
+    figure.savefig(path, dpi=90, metadata={"Software": None})
+    plt.close(figure)
+    return path
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "images")
-    print(conventions_figure(parser.parse_args().out))
+    parser.add_argument(
+        "--workspace-step", type=float, default=2.0, help="grid step of the workspace map [deg]"
+    )
+    args = parser.parse_args()
+    print(conventions_figure(args.out))
+    print(workspace_figure(args.out, args.workspace_step))
 
 
 if __name__ == "__main__":

@@ -278,13 +278,164 @@ def test_getting_started_tour_runs(tmp_path: Path) -> None:
 def test_conventions_figure_draws(tmp_path: Path) -> None:
     _require("matplotlib", "the plot extra, for docs/figures.py")
     result = subprocess.run(
-        [sys.executable, str(DOCS / "figures.py"), "--out", str(tmp_path)],
+        [
+            sys.executable,
+            str(DOCS / "figures.py"),
+            "--out",
+            str(tmp_path),
+            "--workspace-step",
+            "10",
+        ],
         capture_output=True,
         text=True,
         timeout=COMMAND_TIMEOUT,
         check=False,
     )
     assert result.returncode == 0, result.stderr
-    png = tmp_path / "conventions.png"
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (DOCS / "images" / "conventions.png").is_file(), "run: python docs/figures.py"
+    for name in ("conventions.png", "workspace_gap_map.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        assert (DOCS / "images" / name).is_file(), "run: python docs/figures.py"
+
+
+# --------------------------------------------------------------------------- formulas
+
+#: Pages whose formulas the site renders (their sources write them in TeX).
+FORMULA_PAGES = ("conventions", "kinematics", "dynamics", "closure", "calibration", "hardware")
+#: The KaTeX files the site ships (no network at build or view time).
+KATEX_FILES = (
+    "javascripts/katex/katex.min.js",
+    "javascripts/katex/auto-render.min.js",
+    "javascripts/katex/katex.min.css",
+    "javascripts/katex.js",
+)
+
+
+def test_formulas_are_marked_for_katex(site: Path) -> None:
+    for name in KATEX_FILES:
+        assert (site / name).is_file(), f"{name} is not in the site"
+    for stem in FORMULA_PAGES:
+        page = site / stem / "index.html"
+        text = page.read_text(encoding="utf-8")
+        assert 'class="arithmatex"' in text, f"{stem}: no formula marked by arithmatex"
+        links = _parse(page).links
+        for name in KATEX_FILES:
+            assert any(link.endswith(name) for link in links), f"{stem} does not load {name}"
+        assert not any(link.startswith(("http:", "https:")) and "katex" in link for link in links)
+
+
+def _chromium() -> Any:
+    """A headless Chromium through spm_pin.viz.browser; skip without one (fail under CI)."""
+    _require("playwright", "pip install playwright, for the browser checks")
+    from spm_pin.viz.browser import chromium, find_chromium
+
+    if find_chromium() is None:
+        if IN_CI:
+            pytest.fail("no Chromium on the PATH; CI must install it")
+        pytest.skip("no Chromium on the PATH")
+    return chromium()
+
+
+_COUNT_FORMULAS = """() => ({
+    marked: document.querySelectorAll('.arithmatex').length,
+    rendered: document.querySelectorAll('.arithmatex .katex').length,
+    errors: document.querySelectorAll('.katex-error').length,
+})"""
+
+
+def test_katex_renders_the_formulas_offline(site: Path) -> None:
+    with _chromium() as browser:
+        page = browser.new_page()
+        requested: list[str] = []
+
+        def route(handle: Any) -> None:
+            url = handle.request.url
+            if url.startswith("file:"):
+                handle.continue_()
+            else:
+                requested.append(url)
+                handle.abort()
+
+        page.route("**/*", route)
+        try:
+            for stem in FORMULA_PAGES:
+                page.goto((site / stem / "index.html").as_uri())
+                page.wait_for_function(
+                    "document.querySelectorAll('.arithmatex .katex').length > 0", timeout=20_000
+                )
+                counts = page.evaluate(_COUNT_FORMULAS)
+                assert counts["marked"] > 0 and counts["errors"] == 0, (stem, counts)
+                assert counts["rendered"] == counts["marked"], (stem, counts)
+        finally:
+            page.close()
+    # (the theme asks for web fonts and the repository's stars, and does without them)
+    maths = [url for url in requested if "katex" in url.lower() or "mathjax" in url.lower()]
+    assert not maths, f"the formulas need the network: {maths}"
+
+
+# --------------------------------------------------------------------------- pictures
+
+
+def _pixels(name: str) -> Any:
+    """The RGB pixels (height, width, 3) of docs/images/<name>, as ints."""
+    image = _require("PIL.Image", "Pillow comes with matplotlib: pip install '.[plot]'")
+    import numpy as np
+
+    with image.open(DOCS / "images" / name) as picture:
+        return np.asarray(picture.convert("RGB")).astype(int)
+
+
+def _colour_masks(pixels: Any) -> dict[str, Any]:
+    """Where the colours that matter are: the legs' hues, the contact markers' red
+    (spm_pin.viz.contacts.CONTACT_COLOR, shaded) and the near-black of colliding links
+    (spm_pin.viz.COLLIDING_COLOR, 0.12 grey, shaded)."""
+    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+    return {
+        "leg 1 blue": (b > r + 80) & (b > g + 20),
+        "leg 2 orange": (r > 180) & (r > g + 50) & (g > b + 40),
+        "leg 3 purple": (b > g + 50) & (r > g + 30),
+        "contact red": (r > 150) & (g < 70) & (b < 70),
+        "near-black": pixels.max(axis=-1) < 40,
+    }
+
+
+def _colour_counts(pixels: Any) -> dict[str, int]:
+    """How many pixels have each colour of :func:`_colour_masks`."""
+    return {name: int(mask.sum()) for name, mask in _colour_masks(pixels).items()}
+
+
+#: Least pixels of a colour that count as "visible" in a 960 x 720 picture.
+VISIBLE_PIXELS = {"leg": 1000, "contact red": 100, "near-black": 5000}
+
+
+def test_picture_of_the_study_input_shows_three_legs_and_no_collision() -> None:
+    pixels = _pixels("spm_safe.png")
+    assert pixels.shape == (720, 960, 3)
+    counts = _colour_counts(pixels)
+    for leg in ("leg 1 blue", "leg 2 orange", "leg 3 purple"):
+        assert counts[leg] >= VISIBLE_PIXELS["leg"], (leg, counts)
+    assert counts["near-black"] == 0, counts
+    assert counts["contact red"] == 0, counts
+
+
+def test_picture_of_the_colliding_input_shows_black_links_and_contacts() -> None:
+    pixels = _pixels("spm_colliding.png")
+    assert pixels.shape == (720, 960, 3)
+    counts = _colour_counts(pixels)
+    assert counts["near-black"] >= VISIBLE_PIXELS["near-black"], counts
+    assert counts["contact red"] >= VISIBLE_PIXELS["contact red"], counts
+    # leg 1 is free and keeps its colour; legs 2 and 3 collide: no orange, no purple
+    assert counts["leg 1 blue"] >= VISIBLE_PIXELS["leg"], counts
+    assert counts["leg 2 orange"] < 50 and counts["leg 3 purple"] < 50, counts
+    # the red markers sit on the black links: within 30 px of near-black pixels
+    import numpy as np
+
+    masks = _colour_masks(pixels)
+    red, dark = np.argwhere(masks["contact red"]), np.argwhere(masks["near-black"])
+    nearest = np.min(np.abs(red[:, None, :] - dark[None, ::20, :]).max(axis=-1), axis=1)
+    assert np.median(nearest) <= 30, "the contact markers are away from the black links"
+
+
+def test_pictures_of_the_poses_are_full_size() -> None:
+    for name in ("spm_home.png", "spm_demo.png", "spm_safe.png", "spm_colliding.png"):
+        assert _pixels(name).shape == (720, 960, 3), name
+    assert _pixels("workspace_gap_map.png").shape[1] >= 1000

@@ -387,7 +387,7 @@ def test_visualize(tmp_path: Path) -> None:
     assert out["motion_colliding_samples"] == "none"
 
     # Each page holds the robot's scene: every link's object, sent to the viewer.
-    for name in ("home", "demo", "colliding", "motion"):
+    for name in ("home", "demo", "safe", "colliding", "motion"):
         path = Path(out[f"wrote_{name}"].split(" (")[0])
         assert path == tmp_path / f"{name}.html"
         page = path.read_text(encoding="utf-8")
@@ -399,13 +399,14 @@ def test_visualize(tmp_path: Path) -> None:
     caption = (tmp_path / "colliding.html").read_text(encoding="utf-8")
     assert "proximal_2-proximal_3" in caption and "220" in caption
     assert "no collision" in (tmp_path / "demo.html").read_text(encoding="utf-8")
+    assert "no collision" in (tmp_path / "safe.html").read_text(encoding="utf-8")
 
     if _browser():  # the documentation's pictures: PNGs of the stated size
-        for name in ("home", "demo", "colliding"):
+        for name in ("home", "demo", "safe", "colliding"):
             picture = pictures / f"spm_{name}.png"
             assert out[f"wrote_{name}_png"].startswith(str(picture))
             head = picture.read_bytes()[:24]
-            assert head[:8] == PNG_MAGIC and struct.unpack(">II", head[16:24]) == (640, 480)
+            assert head[:8] == PNG_MAGIC and struct.unpack(">II", head[16:24]) == (960, 720)
 
 
 def _base64(text: str) -> bytes:
