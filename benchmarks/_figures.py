@@ -447,6 +447,59 @@ def figures_calibration(data: Mapping[str, Any]) -> list[Figure]:
     ]
 
 
+def figures_remote(data: Mapping[str, Any]) -> list[Figure]:
+    """spm serve on loopback; the peer is the same query through the Python API."""
+    results = data["results"]
+    peer = results["peer"]
+    rows = [
+        timed(
+            "get_state",
+            "remote: GET /state round trip",
+            results["get_state"],
+            peer_name="backend.state() in process",
+            peer=peer["state"],
+        )
+    ]
+    for rate, key, targets in (
+        (100, "stream_100", ()),
+        (1000, "stream_1000", ("stream_1khz_p99",)),
+    ):
+        stream = results[key]
+        readers = stream["readers"]["connections"]
+        rows.append(
+            timed(
+                f"target_{rate}hz",
+                f"remote: WS target answered, {rate:,} Hz, {readers} readers",
+                stream["latency"],
+                peer_name="backend.command() in process",
+                peer=peer[f"command_{rate}"],
+                targets=targets,
+            )
+        )
+    fast = results["stream_1000"]
+    rows.append(
+        valued(
+            "answered_1khz",
+            "remote: targets answered per second at 1 kHz",
+            fast["answer_rate_hz"],
+            unit="Hz",
+            higher_is_better=True,
+            targets=("stream_1khz_rate",),
+        )
+    )
+    rows.append(
+        valued(
+            "delivered",
+            "remote: targets answered and pushes received (nothing lost silently)",
+            data["targets"]["nothing_lost_silently"]["value"],
+            unit="fraction",
+            higher_is_better=True,
+            targets=("nothing_lost_silently",),
+        )
+    )
+    return rows
+
+
 @dataclasses.dataclass(frozen=True)
 class Benchmark:
     """One benchmark of the suite.
@@ -502,6 +555,12 @@ BENCHMARKS: dict[str, Benchmark] = {
             "calibration",
             "the same least-squares problem with scipy's 2-point finite-difference Jacobian",
             figures_calibration,
+        ),
+        Benchmark(
+            "remote",
+            "the same queries through the Python API in the same process "
+            "(backend.state(), backend.command(): a goal through the guard)",
+            figures_remote,
         ),
     )
 }

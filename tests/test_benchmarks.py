@@ -297,6 +297,51 @@ def test_quick_collision_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture
     assert set(data["targets"]) == {"check_median", "all_pass"}  # no map target at 15 deg
 
 
+def test_quick_remote_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A real server, a streaming client and readers: the JSON's shape, and every
+    target and push accounted for (counts, not timings)."""
+    for module in ("fastapi", "uvicorn", "httpx", "websockets"):
+        pytest.importorskip(module)
+    from benchmarks import bench_remote
+
+    out = tmp_path / "remote.json"
+    assert bench_remote.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "remote" and data["config"]["quick"] is True
+    assert {"fastapi", "uvicorn", "httpx", "websockets"} <= set(data["machine"]["packages"])
+    results = data["results"]
+    assert set(results) == {"get_state", "stream_100", "stream_1000", "peer"}
+    assert results["get_state"]["backend"] == "kinematic"
+    assert results["get_state"]["p95_s"] >= results["get_state"]["median_s"] > 0
+    readers = data["config"]["sizes"]["readers"]
+    for name in ("stream_100", "stream_1000"):
+        stream = results[name]
+        sent = stream["sent"]
+        assert sent == round(data["config"]["sizes"]["seconds"] * stream["rate_hz"]), name
+        assert stream["acks"] + stream["refused"] + stream["errors"] + stream["lost"] == sent
+        assert sum(stream["why"].values()) >= stream["refused"] + stream["errors"] + stream["lost"]
+        if stream["acks"] + stream["refused"] + stream["errors"]:
+            assert stream["latency"]["samples"] == sent - stream["lost"], name
+            assert stream["latency"]["p99_s"] >= stream["latency"]["median_s"] > 0, name
+        pushes = stream["readers"]
+        assert pushes["connections"] == len(pushes["per_connection"]) == readers, name
+        assert pushes["received"] == sum(c["received"] for c in pushes["per_connection"])
+        assert pushes["pushed"] - pushes["received"] == pushes["not_received"] >= 0, name
+        for connection in pushes["per_connection"]:
+            assert 0 <= connection["received"] <= connection["pushed"], name
+            assert connection["dropped"] >= 0, name
+    for name in ("state", "command_100", "command_1000", "move_100", "move_1000"):
+        assert results["peer"][name]["p95_s"] >= results["peer"][name]["median_s"] > 0, name
+    assert set(data["targets"]) == {
+        "stream_1khz_p99",
+        "stream_1khz_rate",
+        "nothing_lost_silently",
+        "all_pass",
+    }
+    assert 0.0 <= data["targets"]["nothing_lost_silently"]["value"] <= 1.0
+
+
 @pytest.mark.hardware  # the suite includes bench_hardware (emulated bus on a pty)
 def test_gathered_suite_quick(tmp_path: Path) -> None:
     """`python -m benchmarks --quick` runs every benchmark into one pyperf suite and one
@@ -317,7 +362,7 @@ def test_gathered_suite_quick(tmp_path: Path) -> None:
     assert info["suite"] == "spm-pin benchmarks" and info["quick"] == 1 and info["complete"] == 1
     assert {"cpu_count", "python", "version.numpy", "load_avg_end"} <= set(info)
     assert info["benchmarks"].split() == list(_figures.BENCHMARKS)
-    optional = {"dynamics": "mujoco", "hardware": "dynamixel_sdk"}
+    optional = {"dynamics": "mujoco", "hardware": "dynamixel_sdk", "remote": "fastapi"}
     expected_rows = []
     for name in _figures.BENCHMARKS:
         status = info[f"status.{name}"]

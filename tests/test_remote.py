@@ -653,3 +653,24 @@ def test_json_has_no_nan(client: httpx.Client) -> None:
     assert not any(
         isinstance(v, float) and not math.isfinite(v) for v in verdict.values() if v is not None
     )
+
+
+def test_state_after_goals_is_exact(robot: spm.SPMRobot) -> None:
+    """The state read after goals (streamed without reading it back, or moved to) has
+    the exact smallest distance that the full collision report computes, though the
+    twin computes it lazily and with a cap; it is kept until the next goal."""
+    from spm_pin.collision import check_input
+
+    twin = KinematicBackend(robot=robot)
+    path = np.radians([[1.0, 0.5, -0.2], [2.0, 1.0, -0.4], [10.0, -5.0, 20.0]])
+    for goal in path[:2]:
+        twin.command(goal)
+    first = twin.state()
+    assert first.min_distance == check_input(path[1], robot).min_distance
+    assert twin.state().min_distance == first.min_distance  # kept, not recomputed
+    moved = twin.move(path[2])
+    report = check_input(path[2], robot)
+    assert moved.min_distance == report.min_distance
+    assert moved.pairs == report.pairs
+    np.testing.assert_allclose(twin.state().theta, path[2], atol=TOL["same_numbers"])
+    assert twin.state().min_distance == report.min_distance

@@ -508,6 +508,12 @@ class GuardedTwin:
 class KinematicBackend(GuardedTwin):
     """The model alone: a twin whose input angles jump to each accepted goal.
 
+    Its state is computed when it is read, not when a goal is accepted, and kept
+    until the next goal: a stream of goals (:meth:`command`) pays for the guard's
+    checks only, and the exact smallest link distance (``min_distance``, the costly
+    part) is computed with the distance of the nearest pair of the previous state
+    as a cap, which prunes the other pairs early and gives the same minimum.
+
     Args:
         design: The SPM (default: the prototype); ignored when ``robot`` is given.
         robot: The robot with its collision checker (default
@@ -536,20 +542,113 @@ class KinematicBackend(GuardedTwin):
     ) -> None:
         super().__init__(design, robot=robot, limits=limits)
         start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
-        self._report(start).require()
+        report = self._report(start).require()
         self._theta: FloatArray = start
-        self._state = self._compute_state(start)
+        self._state: TwinState | None = self._compute_state(start, report.min_distance)
+        # The exact distances: a robot of their own (built at the first read after
+        # a goal) and the link pair nearest at the last read, whose distance caps
+        # the search of the next minimum.
+        self._distance_lock = threading.Lock()
+        self._distance_robot: SPMRobot | None = None
+        self._nearest: LinkPair | None = None
+
+    def _min_distance(self, theta: FloatArray) -> float:
+        """The exact smallest link distance at an accepted goal [m] (home assembly
+        mode, every checked pair, as :func:`~spm_pin.collision.check_input`).
+
+        Computed on a robot of its own (under its own lock), so that the twin's lock
+        is not held meanwhile and goals keep being accepted. The distance of the pair
+        nearest last time bounds the minimum from above; with it as the cap, the
+        other pairs stop as soon as they cannot be nearer.
+        """
+        from ..collision import build_robot
+        from ..collision.checker import checker_of
+
+        with self._distance_lock:
+            if self._distance_robot is None:
+                self._distance_robot = build_robot(self.design)
+            robot = self._distance_robot
+            checker = checker_of(robot)
+            q = robot.configuration(theta)
+            nearest = self._nearest
+            if nearest is not None:
+                cap = checker.distances(q, pairs=[nearest])[nearest]
+                if math.isfinite(cap) and cap > 0.0:
+                    return float(checker.clearances(q[None], include_fixed=True, cap=cap)[0])
+            distances = checker.distances(q)
+            self._nearest = min(distances, key=distances.__getitem__)
+            return float(distances[self._nearest])
 
     def state(self) -> TwinState:
-        """The current state (its ``time`` is now)."""
+        """The current state (its ``time`` is now); computed at the first read after
+        a goal, then kept until the next.
+
+        The exact distances are computed without the twin's lock: a goal accepted
+        meanwhile is not held up, and this read answers the state at the goal it
+        started from (its own ``theta``, every value exact there).
+        """
         with self._lock:
-            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
+            theta = self._theta
+        return self._state_at(theta)
+
+    def _state_at(self, theta: FloatArray) -> TwinState:
+        """The state at ``theta``, an accepted goal (the current one, or one that a
+        later goal has replaced meanwhile); kept when it is still the current one."""
+        with self._lock:
+            if self._state is not None and self._theta is theta:
+                return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
+        min_distance = self._min_distance(theta)
+        with self._lock:
+            state = self._compute_state(theta, min_distance)
+            if self._theta is theta:
+                self._state = state
+            return dataclasses.replace(state, time=time.time(), stops=self.stops)
 
     def joints(self) -> FloatArray:
         """The current input angles [rad], (3,)."""
         with self._lock:
             theta: FloatArray = self._theta.copy()
         return theta
+
+    @staticmethod
+    def _goals(
+        theta: npt.ArrayLike,
+        previous: npt.ArrayLike | None,
+        before_previous: npt.ArrayLike | None,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+        goal = _theta(theta)
+        before = None if before_previous is None else _theta(before_previous)
+        last = None if previous is None else _theta(previous)
+        return goal, last, before
+
+    def command(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+    ) -> None:
+        """Jump to a goal [rad], (3,), if it is safe, without reading the state back
+        (what a streamed goal needs; :meth:`move` answers the state too).
+
+        Arguments and errors as :meth:`move`.
+        """
+        self._command(theta, previous, before_previous, period)
+
+    def _command(
+        self,
+        theta: npt.ArrayLike,
+        previous: npt.ArrayLike | None,
+        before_previous: npt.ArrayLike | None,
+        period: float | None,
+    ) -> FloatArray:
+        goal, last, before = self._goals(theta, previous, before_previous)
+        with self._lock:
+            self._accept(goal, last, before, period)
+            self._theta = goal
+            self._state = None
+        return goal
 
     def move(
         self,
@@ -569,19 +668,15 @@ class KinematicBackend(GuardedTwin):
                 guard then checks the acceleration too.
             period: Time since ``previous`` was commanded [s].
 
+        Returns:
+            The state at the goal.
+
         Raises:
             InputError: not 3 finite numbers.
             GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
                 ``report`` says why); the state is unchanged.
         """
-        goal = _theta(theta)
-        before = None if before_previous is None else _theta(before_previous)
-        last = None if previous is None else _theta(previous)
-        with self._lock:
-            self._accept(goal, last, before, period)
-            self._state = self._compute_state(goal)
-            self._theta = goal
-            return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
+        return self._state_at(self._command(theta, previous, before_previous, period))
 
     def stop(self, reason: str | None = None) -> TwinState:
         """Nothing is ever in motion in the kinematic twin: it holds still, counts

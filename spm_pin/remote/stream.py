@@ -125,7 +125,9 @@ class StateCache:
     """The latest state as JSON text, shared by every connection.
 
     Read from the backend (in a worker thread) at most once per ``max_age``
-    seconds asked for, however many connections ask.
+    seconds asked for, however many connections ask. While a read is under way the
+    pushers send the state read before it (its ``time`` says when) rather than
+    wait: a slow read delays no push.
     """
 
     def __init__(self, twin: TwinBackend) -> None:
@@ -141,6 +143,8 @@ class StateCache:
     async def latest(self, max_age: float) -> str:
         """The state's JSON members (the object without its opening brace)."""
         if time.monotonic() - self._read_at < max_age:
+            return self._text
+        if self._text and self._lock.locked():  # a read is under way: no pusher waits
             return self._text
         async with self._lock:
             if time.monotonic() - self._read_at >= max_age:
@@ -366,8 +370,12 @@ class _Session:
                 rotation = _rotation(message.rpy_deg, message.quaternion_wxyz)
                 theta = await to_thread.run_sync(twin.solve, rotation)
 
+            # A twin that can take a goal without reading its state back (the
+            # kinematic twin's ``command``) is spared that work: the pushes read it.
+            command = getattr(twin, "command", None) or twin.move
+
             def move() -> Any:
-                return twin.move(
+                return command(
                     theta, previous=self._previous, before_previous=self._before, period=period
                 )
 
