@@ -17,6 +17,7 @@ __all__ = [
     "FileFormatError",
     "HardwareError",
     "InputError",
+    "PlanningError",
     "SPMError",
     "ServoAlertError",
     "ServoError",
@@ -203,3 +204,29 @@ class UnsafeCommandError(SPMError, ValueError):
         self.reasons = reasons
         self.goal = goal
         self.index = index
+
+
+class PlanningError(SPMError, ValueError):
+    """No safe path: the start or the goal is unsafe, or the goal lies in a part of
+    the safe set that the start cannot reach.
+
+    Attributes:
+        reasons: Why, one sentence each (which check fails, and where).
+        check: The failing check: ``"start"``, ``"goal"`` (unsafe end points) or
+            ``"connected"`` (no safe path between them).
+        nearest: The safe input angles nearest the unsafe end point [rad], (3,), when
+            one was found (None otherwise).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        reasons: tuple[str, ...] = (),
+        check: str = "goal",
+        nearest: Any = None,
+    ) -> None:
+        super().__init__(message)
+        self.reasons = reasons
+        self.check = check
+        self.nearest = nearest

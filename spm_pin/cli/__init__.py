@@ -63,6 +63,7 @@ from . import (
     dynamics,
     kinematics,
     model,
+    plan,
     remote,
     study,
     view,
@@ -108,6 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     dynamics.add_parser(commands)  # torques
     collision.add_parser(commands)  # collide
     workspace.add_parser(commands)  # workspace
+    plan.add_parser(commands)  # plan
     remote.add_parser(commands)  # serve
 
     # spm servo ...: defined with the hardware layer (its SDK is imported only when run).
