@@ -94,11 +94,16 @@ def test_status_move_follow(
     assert [bus.item(i, "Torque Enable") for i in IDS] == [0, 0, 0]  # off at the end
 
     writes = len(bus.goal_writes())
-    assert main(["servo", "move", "0", "80", "0", "--config", str(config)]) == 2
+    argv = ["servo", "move", "0", "80", "0", "--config", str(config)]
+    assert main([*argv, "--straight"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("spm: error: path refused at sample") and "links collide" in err
     assert err.count("\n") == 1
     assert len(bus.goal_writes()) == writes + 3  # only start()'s hold of the present
+    assert main(argv) == 2  # planned: the goal itself is unsafe
+    err = capsys.readouterr().err
+    assert "is unsafe" in err and "nearest safe input" in err and err.count("\n") == 1
+    assert len(bus.goal_writes()) == writes + 6  # again only start()'s hold
 
     assert main(["servo", "follow", "--config", str(config), "--duration", "0.2"]) == 0
     lines = capsys.readouterr().out.splitlines()
@@ -117,7 +122,10 @@ def test_status_move_follow(
         (["servo", "status", "--port", "/dev/no-such-port"], "cannot open servo port"),
         (["servo", "emulate", "--ids", "1", "1"], "--ids must be distinct"),
         (["servo", "emulate", "--ids", "300"], "servo ids lie in 0..252"),
-        (["servo", "move", "1", "2"], "the following arguments are required: T3"),
+        (["servo", "move", "1", "2"], "give three input angles T1 T2 T3 [deg], got 2"),
+        (["servo", "move"], "give the goal once"),
+        (["servo", "move", "1", "2", "3", "--rpy", "0", "0", "0"], "give the goal once"),
+        (["servo", "move", "1", "2", "3", "--turns", "1"], "--turns applies"),
         (["servo", "follow", "--duration", "-1"], "must be a positive number"),
         (["servo", "status", "--config", "/no/such.toml"], "cannot read servo configuration"),
     ],

@@ -4,7 +4,9 @@ Commands::
 
     spm servo emulate [--ids 1 2 3] [--baud BPS] [--firmware N] [--positions P1 P2 P3]
     spm servo status --port DEV [--config FILE] [--json]
-    spm servo move T1 T2 T3 --port DEV [--config FILE] [--speed DEG_S] [--json]
+    spm servo move (T1 T2 T3 | --rpy R P Y | --quaternion W X Y Z) --port DEV [--config FILE]
+                   [--turns N] [--straight] [--speed DEG_S] [--json]
+    spm servo stream FILE|- --port DEV [--config FILE] [--mode slide|stop] [--rate HZ] [--json]
     spm servo follow --port DEV [--config FILE] [--duration S] [--rate HZ] [--view] [--json]
 
 ``emulate`` prints the device path as the last word of its first line and serves the
@@ -16,6 +18,7 @@ the prototype's servos 1, 2, 3).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from typing import Any
 
@@ -26,10 +29,11 @@ from ..errors import InputError
 # The hardware package is imported inside the functions: `import spm_pin.cli` loads no
 # servo SDK (spm_pin.cli imports this module only inside build_parser).
 from ._options import UsageError as _UsageError
-from ._options import add_angle_arguments as _add_angle_arguments
 from ._options import add_json_option as _add_json_option
+from ._options import angle_deg as _angle_deg
 from ._options import design_of as _design
 from ._options import emit as _emit
+from ._options import number as _number
 
 __all__ = ["add_servo_parser"]
 
@@ -189,34 +193,134 @@ def _run_status(args: argparse.Namespace) -> int:
     return 0
 
 
+def _move_goal(args: argparse.Namespace) -> Any:
+    """The goal of ``spm servo move``: input angles [rad] or a rotation matrix."""
+    from ..rotations import matrix_from_quaternion, matrix_from_rpy
+
+    args.theta = args.theta or None  # nargs="*": [] when left out
+    given = sum(x is not None for x in (args.theta, args.rpy, args.quaternion))
+    if args.theta is not None and len(args.theta) != 3:
+        raise _UsageError(f"give three input angles T1 T2 T3 [deg], got {len(args.theta)}")
+    if given != 1:
+        raise _UsageError("give the goal once: T1 T2 T3 [deg], --rpy R P Y or --quaternion W X Y Z")
+    if args.turns is not None and args.theta is not None:
+        raise _UsageError("--turns applies to an orientation goal (--rpy or --quaternion)")
+    if args.straight and args.theta is None:
+        raise _UsageError(
+            "--straight moves to input angles T1 T2 T3: orientation goals are planned"
+        )
+    if args.theta is not None:
+        return np.radians(args.theta)
+    if args.rpy is not None:
+        return matrix_from_rpy(np.radians(args.rpy))
+    return matrix_from_quaternion(np.asarray(args.quaternion, dtype=float))
+
+
 def _run_move(args: argparse.Namespace) -> int:
+    from ..hardware.orientation import move_planned
     from ..hardware.sync import ServoSync
 
+    goal = _move_goal(args)
     config = _config(args)
     robot = _robot(args)
-    theta_deg = [args.T1, args.T2, args.T3]
+    if args.speed is not None:
+        speed = min(math.radians(args.speed), config.safety.max_speed)
+        config = config.replace(safety=dataclasses.replace(config.safety, max_speed=speed))
+    planned: dict[str, Any] | None = None
     with _bus(config) as bus, ServoSync(bus, config, robot=robot) as sync:
         start = sync.start()
-        result = sync.move_to(
-            np.radians(theta_deg),
-            speed=None if args.speed is None else math.radians(args.speed),
-        )
+        if args.straight:
+            result = sync.move_to(goal)
+            target = goal
+        else:
+            path, result = move_planned(sync, goal, turns=args.turns or 0)
+            target = path.goal
+            planned = {
+                "waypoints_deg": np.degrees(path.theta),
+                "length_deg": path.length_deg,
+                "straight_length_deg": path.straight_length_deg,
+                "planning_time_ms": path.planning_time_ms,
+            }
     record: dict[str, Any] = {
         "port": config.port,
         "from_deg": np.degrees(start.theta),
-        "to_deg": theta_deg,
+        "to_deg": np.degrees(target),
         "reached": result.reached,
         "final_error_deg": math.degrees(result.final_error),
         "duration_s": result.duration,
         "cycles": len(result.states),
         "max_lag_deg": math.degrees(result.max_lag),
         "late_cycles": result.late_cycles,
+        "planned": planned,
         "events": list(sync.events),
         "final": _state_record(result.final),
         "torque": "off",
     }
     _emit(record, args.json)
     return 0 if result.reached else 1
+
+
+def _targets(lines: Any, source: str) -> list[Any]:
+    """Orientation targets from text lines ``roll pitch yaw`` [deg] (blank lines and
+    ``#`` comments skipped; ``hold`` holds one period)."""
+    from ..rotations import matrix_from_rpy
+
+    targets: list[Any] = []
+    for number, line in enumerate(lines, start=1):
+        text = line.split("#", 1)[0].replace(",", " ").strip()
+        if not text:
+            continue
+        if text == "hold":
+            targets.append(None)
+            continue
+        try:
+            values = [float(x) for x in text.split()]
+        except ValueError:
+            values = []
+        if len(values) != 3 or not all(math.isfinite(v) for v in values):
+            raise InputError(
+                f"{source}, line {number}: expected 'roll pitch yaw' [deg] or 'hold', got "
+                f"{line.strip()!r}",
+                argument="file",
+            )
+        targets.append(matrix_from_rpy(np.radians(values)))
+    return targets
+
+
+def _run_stream(args: argparse.Namespace) -> int:
+    import sys
+
+    from ..hardware.orientation import OrientationStream
+    from ..hardware.sync import ServoSync
+
+    if args.file == "-":
+        targets = _targets(sys.stdin, "standard input")
+    else:
+        with open(args.file, encoding="utf-8") as handle:
+            targets = _targets(handle, args.file)
+    config = _config(args)
+    robot = _robot(args)
+    with _bus(config) as bus, ServoSync(bus, config, robot=robot) as sync:
+        start = sync.start()
+        stream = OrientationStream(sync, mode=args.mode)
+        steps = stream.run(targets)
+        final = sync.read()
+    reasons: dict[str, int] = {}
+    for step in steps:
+        if step.reason is not None:
+            reasons[step.reason] = reasons.get(step.reason, 0) + 1
+    record: dict[str, Any] = {
+        "port": config.port,
+        "targets": len(steps),
+        "from_deg": np.degrees(start.theta),
+        "counts": dict(stream.counts),
+        "reasons": reasons,
+        "final": _state_record(final),
+        "events": list(sync.events),
+        "torque": "off",
+    }
+    _emit(record, args.json)
+    return 0
 
 
 def _run_follow(args: argparse.Namespace) -> int:
@@ -351,13 +455,43 @@ def add_servo_parser(commands: Any) -> None:
 
     move = actions.add_parser(
         "move",
-        help="move to input angles T1 T2 T3 [deg], checked by the model first",
-        description="Configure the servos, hold where they are, then move along a straight "
-        "line in joint space to T1 T2 T3 [deg] after the guard approved every sample "
-        "(reachable, singularity margin, no collision, joint/speed/acceleration limits). "
-        "Torque goes off at the end. Exit status 1 if the goal was not reached.",
+        help="move to input angles T1 T2 T3 [deg] or an orientation, along a safe path",
+        description="Configure the servos, hold where they are, then move to input angles "
+        "T1 T2 T3 [deg] or an orientation (--rpy, --quaternion) along a path planned in "
+        "the safe set (spm plan: safe along the whole motion, round unsafe parts of the "
+        "workspace), after the guard approved every sample (reachable, singularity "
+        "margin, no collision, joint/speed/acceleration limits). --straight keeps to the "
+        "straight line in joint space and refuses when it is unsafe. Torque goes off at "
+        "the end. Exit status 1 if the goal was not reached.",
     )
-    _add_angle_arguments(move)
+    move.add_argument(
+        "theta", nargs="*", type=_angle_deg, metavar="T", help="input angles T1 T2 T3 [deg]"
+    )
+    move.add_argument(
+        "--rpy",
+        nargs=3,
+        type=_number,
+        metavar=("R", "P", "Y"),
+        help="goal orientation: roll, pitch, yaw [deg] (as spm ik --rpy)",
+    )
+    move.add_argument(
+        "--quaternion",
+        nargs=4,
+        type=_number,
+        metavar=("W", "X", "Y", "Z"),
+        help="goal orientation: quaternion, scalar first",
+    )
+    move.add_argument(
+        "--turns",
+        type=int,
+        metavar="N",
+        help="whole turns about the axis added to the shortest one (orientation goals)",
+    )
+    move.add_argument(
+        "--straight",
+        action="store_true",
+        help="the straight line in joint space to T1 T2 T3, refused when unsafe",
+    )
     move.add_argument(
         "--speed", type=_positive, metavar="DEG_S", help="joint speed [deg/s] (default: max)"
     )
@@ -385,6 +519,27 @@ def add_servo_parser(commands: Any) -> None:
     _add_bus_options(follow)
     follow.set_defaults(run=_run_follow)
 
+    stream = actions.add_parser(
+        "stream",
+        help="stream orientation targets (roll pitch yaw per line) to the servos",
+        description="Send one orientation target per loop period, read from FILE (or - for "
+        "standard input): 'roll pitch yaw' [deg] per line, or 'hold'. Each target is "
+        "solved, rate-limited and checked as a continuous motion in the safe set, then by "
+        "the guard; an unsafe target never reaches the bus: with --mode slide (default) "
+        "the goal goes as far towards it as is safe, with --mode stop it holds. Torque "
+        "goes off at the end; the summary counts what each target did and why.",
+    )
+    stream.add_argument("file", metavar="FILE", help="targets, one per line ('-': stdin)")
+    stream.add_argument(
+        "--mode",
+        choices=("slide", "stop"),
+        default="slide",
+        help="what an unsafe target does: slide along the boundary, or stop (hold)",
+    )
+    stream.add_argument("--rate", type=_positive, metavar="HZ", help="loop rate [Hz]")
+    _add_bus_options(stream)
+    stream.set_defaults(run=_run_stream)
+
 
 def _missing_subcommand(args: argparse.Namespace) -> int:
-    raise _UsageError("spm servo needs a subcommand: emulate, status, move or follow")
+    raise _UsageError("spm servo needs a subcommand: emulate, status, move, stream or follow")

@@ -1,0 +1,303 @@
+"""Orientation control of the servos: planned moves and streamed orientation targets.
+
+* :func:`planned_goals` / :func:`move_planned`: a move to input angles or an
+  orientation along a path of :func:`spm_pin.planning.plan` (safe along the whole
+  motion; round the unsafe parts of the workspace instead of refusing), sampled one
+  goal per loop period, each straight piece from rest to rest on a trapezoidal
+  profile at the guard's speed and acceleration limits, then sent by
+  :meth:`~spm_pin.hardware.sync.ServoSync.run` (which checks the goals whole again).
+* :class:`OrientationStream`: orientation targets arriving at a rate (a head tracker,
+  a joystick, a file). Each target is solved (home working mode, the turn about the
+  axis nearest the present goal), rate-limited (speed and acceleration of the
+  guard), and the step towards it checked as a continuous motion in the certified
+  safe set before the sync loop's guard checks it again; an unsafe target never
+  reaches the bus. With ``mode="slide"`` (default) the goal goes as far towards the
+  target as is safe (it slides along the boundary of the safe set); with
+  ``mode="stop"`` it holds the last safe goal. Every step says what it did and why.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InputError, UnreachableError
+from ..kinematics import inverse_kinematics
+from .sync import MoveResult, ServoSync, StepResult
+
+if TYPE_CHECKING:
+    from ..planning import PlannedPath, SafeSet
+
+__all__ = [
+    "STREAM_MODES",
+    "OrientationStream",
+    "StreamStep",
+    "move_planned",
+    "planned_goals",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: What a stream does with a target it cannot reach safely.
+STREAM_MODES = ("slide", "stop")
+#: Bisections of the step towards an unsafe target (mode "slide").
+SLIDE_BISECTIONS = 12
+
+
+def _safe_set(sync: ServoSync, safe: SafeSet | None) -> SafeSet:
+    from ..planning import PlanSettings, safe_set
+
+    if safe is not None:
+        return safe
+    limits = sync.guard.limits
+    settings = PlanSettings(
+        margin=limits.collision_margin,
+        min_dexterity=limits.min_dexterity,
+        min_singularity_margin=limits.min_singularity_margin,
+    )
+    return safe_set(sync.design, settings)
+
+
+def _segment_goals(a0: FloatArray, a1: FloatArray, v: float, a: float, period: float) -> FloatArray:
+    """A straight piece from rest to rest, one goal per period: a trapezoidal profile
+    of the largest joint motion, slowed down to end exactly on a period (every sample
+    then falls on the profile, and its second differences stay within ``a``)."""
+    distance = float(np.max(np.abs(a1 - a0)))
+    if distance == 0.0:
+        still: FloatArray = a1[None].copy()
+        return still
+    if distance >= v * v / a:
+        t_acc = v / a
+        duration = distance / v + t_acc
+    else:
+        t_acc = math.sqrt(distance / a)
+        v = a * t_acc
+        duration = 2.0 * t_acc
+    n = max(1, math.ceil(duration / period - 1e-9))
+    f = n * period / duration
+    v, a, t_acc, duration = v / f, a / f**2, t_acc * f, n * period
+    t = np.arange(1, n + 1) * period
+    s = np.where(
+        t < t_acc,
+        0.5 * a * t**2,
+        np.where(
+            t <= duration - t_acc,
+            0.5 * a * t_acc**2 + v * (t - t_acc),
+            distance - 0.5 * a * (duration - t) ** 2,
+        ),
+    )
+    fraction = np.clip(s / distance, 0.0, 1.0)
+    fraction[-1] = 1.0
+    goals: FloatArray = a0 + fraction[:, None] * (a1 - a0)
+    return goals
+
+
+def planned_goals(
+    path: FloatArray, *, max_speed: float, max_acceleration: float, period: float
+) -> FloatArray:
+    """A polyline of input angles (n, 3) [rad] sampled one goal per ``period`` [s]:
+    each straight piece from rest to rest on a trapezoidal profile (a corner cannot
+    be passed at speed without a jump of the joint speeds), no joint faster than
+    ``max_speed`` [rad/s] nor accelerating more than ``max_acceleration``
+    [rad/s^2]. The last goal is the polyline's end exactly."""
+    theta = np.asarray(path, dtype=float)
+    if theta.ndim != 2 or theta.shape[1] != 3 or theta.shape[0] < 1:
+        raise InputError(f"path must have shape (n, 3), got {theta.shape}", argument="path")
+    pieces = [
+        _segment_goals(theta[k], theta[k + 1], max_speed, max_acceleration, period)
+        for k in range(theta.shape[0] - 1)
+    ]
+    if not pieces:
+        single: FloatArray = theta[-1:].copy()
+        return single
+    goals: FloatArray = np.vstack(pieces)
+    goals[-1] = theta[-1]
+    return goals
+
+
+def move_planned(
+    sync: ServoSync,
+    goal: npt.ArrayLike,
+    *,
+    turns: int = 0,
+    safe: SafeSet | None = None,
+    settle_timeout: float = 2.0,
+) -> tuple[PlannedPath, MoveResult]:
+    """Move the servos to input angles (3,) [rad] or a platform rotation (3, 3) along
+    a planned path (see the module).
+
+    Raises:
+        PlanningError: the goal is unsafe or cannot be reached within the safe set
+            (nothing is sent).
+        UnsafeCommandError: the sync loop's guard refused a goal (holding the last
+            safe one).
+    """
+    from ..planning import plan
+
+    if sync.goal is None:
+        raise InputError("call sync.start() before moving", argument="sync")
+    path = plan(sync.goal, goal, sync.design, turns=turns, safe=_safe_set(sync, safe))
+    limits = sync.guard.limits
+    goals = planned_goals(
+        path.theta,
+        max_speed=limits.max_speed,
+        max_acceleration=limits.max_acceleration,
+        period=sync.config.period,
+    )
+    return path, sync.run(goals, settle_timeout=settle_timeout)
+
+
+@dataclasses.dataclass(frozen=True)
+class StreamStep:
+    """What one target of a stream did.
+
+    Attributes:
+        target: The input angles the target asks for [rad], or None when it could
+            not be solved.
+        goal: The goal sent this cycle [rad] (the last safe goal when holding).
+        action: ``"track"`` (towards the target within the rate limits), ``"slide"``
+            (as far towards it as is safe), ``"hold"`` (nothing new sent).
+        reason: Why not ``"track"`` (None when tracking).
+        sync: The sync loop's result of the cycle.
+    """
+
+    target: FloatArray | None
+    goal: FloatArray
+    action: str
+    reason: str | None
+    sync: StepResult
+
+
+class OrientationStream:
+    """Streamed orientation targets to the servos, through the guard (see the module).
+
+    Args:
+        sync: A started :class:`~spm_pin.hardware.sync.ServoSync` (torque on).
+        mode: ``"slide"`` or ``"stop"`` for targets that cannot be reached safely.
+        safe: The certified safe set (default: the guard's limits).
+
+    Attributes:
+        velocity: The rate-limited goal velocity [rad/s], (3,).
+        counts: Steps by action.
+    """
+
+    def __init__(self, sync: ServoSync, *, mode: str = "slide", safe: SafeSet | None = None):
+        if mode not in STREAM_MODES:
+            raise InputError(
+                f"mode must be one of {list(STREAM_MODES)}, got {mode!r}",
+                argument="mode",
+                value=mode,
+            )
+        if sync.goal is None:
+            raise InputError("call sync.start() before streaming", argument="sync")
+        self.sync = sync
+        self.mode = mode
+        self.safe = _safe_set(sync, safe)
+        self.velocity = np.zeros(3)
+        self.counts = dict.fromkeys(("track", "slide", "hold"), 0)
+
+    def solve(self, R: npt.ArrayLike) -> FloatArray:
+        """Input angles [rad] of a platform rotation: the home working mode, turned
+        about the axis the way nearest the present goal.
+
+        Raises:
+            UnreachableError: some leg cannot close.
+        """
+        from .._checks import as_rotation
+
+        rotation = as_rotation(R, "R")
+        ik = inverse_kinematics(rotation[None], self.sync.design)
+        legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
+        if legs:
+            raise UnreachableError(f"leg(s) {legs} cannot close", value=rotation)
+        theta = np.asarray(ik.theta[0], dtype=float)
+        goal = self.sync.goal if self.sync.goal is not None else np.zeros(3)
+        # Each input modulo a turn, nearest the present goal (the gaps stay in order
+        # when every input moves less than half a turn).
+        nearest: FloatArray = theta + 2.0 * math.pi * np.round((goal - theta) / (2.0 * math.pi))
+        return nearest
+
+    def _limited(self, goal: FloatArray, target: FloatArray) -> FloatArray:
+        """The next goal towards ``target`` within the speed and acceleration limits
+        (per joint), from ``goal`` moving at :attr:`velocity`."""
+        limits = self.sync.guard.limits
+        period = self.sync.config.period
+        v_max, a_max = limits.max_speed, limits.max_acceleration
+        # Speed that can still stop at the target: v^2 <= 2 a d.
+        distance = target - goal
+        stop_speed = np.sqrt(2.0 * a_max * np.abs(distance))
+        wanted = np.sign(distance) * np.minimum(
+            np.minimum(v_max, stop_speed), np.abs(distance) / period
+        )
+        change = np.clip(wanted - self.velocity, -a_max * period, a_max * period)
+        velocity = self.velocity + change
+        result: FloatArray = goal + velocity * period
+        return result
+
+    def _safe_step(self, goal: FloatArray, nxt: FloatArray) -> bool:
+        return bool(self.safe.certify(np.vstack([goal, nxt]))[0])
+
+    def step(self, R: npt.ArrayLike | None) -> StreamStep:
+        """One cycle with a target orientation (None: hold)."""
+        sync = self.sync
+        goal = np.array(sync.goal, dtype=float)
+        period = sync.config.period
+        target: FloatArray | None = None
+        reason: str | None = None
+        if R is not None:
+            try:
+                target = self.solve(R)
+            except (UnreachableError, InputError) as exc:
+                reason = f"target not solved: {exc}"
+        action = "hold" if target is None else "track"
+        nxt = goal
+        if target is not None:
+            nxt = self._limited(goal, target)
+            if not self._safe_step(goal, nxt):
+                reason = "the way towards the target leaves the safe set"
+                if self.mode == "slide":
+                    low, high = 0.0, 1.0  # goal is safe; find the furthest safe fraction
+                    for _ in range(SLIDE_BISECTIONS):
+                        mid = 0.5 * (low + high)
+                        if self._safe_step(goal, goal + mid * (nxt - goal)):
+                            low = mid
+                        else:
+                            high = mid
+                    nxt = goal + low * (nxt - goal)
+                    action = "slide" if low > 0.0 else "hold"
+                else:
+                    nxt, action = goal, "hold"
+        result = sync.step(None if action == "hold" else nxt)
+        if action != "hold" and not result.sent:
+            # The loop's own guard (speed, acceleration, its model) refused it.
+            why = result.fault or "; ".join(result.verdict.reasons if result.verdict else ())
+            reason = f"the guard refused the step: {why}"
+            action = "hold"
+        if action == "hold":
+            # Holding: the goal is at rest (the guard's next speed and acceleration
+            # checks start from rest, as the limiter does).
+            sync._goal_before = None
+        sent_goal = np.array(sync.goal, dtype=float)
+        self.velocity = (sent_goal - goal) / period
+        self.counts[action] += 1
+        return StreamStep(target, sent_goal, action, reason, result)
+
+    def run(self, targets: Iterable[Any]) -> list[StreamStep]:
+        """Stream targets (rotations, or None to hold), one per loop period."""
+        import time
+
+        steps = []
+        period = self.sync.config.period
+        next_time = time.perf_counter()
+        for R in targets:
+            steps.append(self.step(R))
+            next_time += period
+            delay = next_time - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+        return steps
