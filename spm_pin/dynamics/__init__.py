@@ -112,6 +112,7 @@ from .plots import plot_torques
 from .servo import XM540_W150, JointFriction, ServoCheck, ServoModel, check_servo
 from .simulator import Controller as Controller
 from .simulator import SimulationResult, Simulator
+from .tracking import TrackingResult, track_goals
 from .trajectory import ServoController, Trajectory
 
 __all__ = [
@@ -131,6 +132,7 @@ __all__ = [
     "ServoModel",
     "SimulationResult",
     "Simulator",
+    "TrackingResult",
     "Trajectory",
     "check_servo",
     "forward_dynamics",
@@ -138,4 +140,5 @@ __all__ = [
     "inverse_dynamics",
     "plot_torques",
     "simulate_mujoco",
+    "track_goals",
 ]
