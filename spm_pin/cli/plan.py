@@ -6,9 +6,12 @@ Command::
     spm plan [--from T1 T2 T3 | --from-rpy R P Y | --from-quaternion W X Y Z]
              (--to T1 T2 T3 | --to-rpy R P Y | --quaternion W X Y Z)
              [--turns N] [--margin-mm MM] [--min-dexterity D] [--design NAME|FILE] [--json]
+             [--out FILE.csv [--rate HZ]] [--html FILE]
 
-Prints the waypoints and their times (a trapezoidal speed profile along the path at
-the servos' guard limits), the length (and the straight line's and the grid search's,
+Prints the waypoints and their times along the fastest motion under the servos' guard
+limits (time-optimal along the path, corners rounded where a spline is certified
+safe; toppra, the planning extra), beside the trapezoidal profile that stops at every
+waypoint; the length (and the straight line's and the grid search's,
 to compare), the smallest link distance at the checked samples, the smallest
 dexterity and singularity margin, and the planning time. An unsafe start or goal, or
 a goal the start cannot reach within the safe set, exits with status 2 and one line
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,6 +30,7 @@ import numpy as np
 from .._records import Record
 from ..errors import InputError
 from ..rotations import matrix_from_quaternion, matrix_from_rpy, rpy_from_matrix
+from ._options import UsageError as _UsageError
 from ._options import add_design_option as _add_design_option
 from ._options import add_json_option as _add_json_option
 from ._options import angle_deg as _angle_deg
@@ -33,42 +38,41 @@ from ._options import design_of as _design
 from ._options import emit as _emit
 from ._options import number as _number
 
-__all__ = ["add_parser", "path_times", "plan_record"]
+__all__ = ["CSV_COLUMNS", "add_parser", "plan_record", "write_csv"]
 
 #: Most samples at which the exact link distances are reported.
 DISTANCE_SAMPLES = 60
+#: Frames per second of the --html animation.
+ANIMATION_FPS = 25.0
+#: Columns of the --out file.
+CSV_COLUMNS = (
+    "t_s",
+    *(f"theta{i}_deg" for i in (1, 2, 3)),
+    *(f"theta{i}_dot_deg_s" for i in (1, 2, 3)),
+    *(f"theta{i}_ddot_deg_s2" for i in (1, 2, 3)),
+)
 
 
-def path_times(theta: Any, max_speed: float, max_acceleration: float) -> Any:
-    """Times [s] of the waypoints (n, 3) [rad] along a trapezoidal speed profile of the
-    path's length (every joint then stays within both limits, from rest to rest)."""
-    steps = np.linalg.norm(np.diff(np.asarray(theta, dtype=float), axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(steps)])
-    total = float(s[-1])
-    v, a = max_speed, max_acceleration
-    if total == 0.0:
-        return np.zeros_like(s)
-    if total >= v * v / a:
-        t_acc = v / a
-        duration = total / v + t_acc
-        s_acc = 0.5 * a * t_acc**2
-        t = np.where(
-            s <= s_acc,
-            np.sqrt(2.0 * s / a),
-            np.where(
-                s <= total - s_acc,
-                t_acc + (s - s_acc) / v,
-                duration - np.sqrt(np.maximum(2.0 * (total - s) / a, 0.0)),
-            ),
-        )
-    else:
-        t_half = math.sqrt(total / a)
-        t = np.where(
-            s <= total / 2.0,
-            np.sqrt(2.0 * s / a),
-            2.0 * t_half - np.sqrt(np.maximum(2.0 * (total - s) / a, 0.0)),
-        )
-    return t
+def write_csv(path: str | Path, trajectory: Any, rate: float) -> int:
+    """Write a trajectory sampled at ``rate`` [Hz] (the end included) as CSV with
+    :data:`CSV_COLUMNS`; returns the number of rows."""
+    t = trajectory.times_at_rate(rate)
+    theta, speed, acceleration = trajectory.sample(t)
+    table = np.column_stack([t, np.degrees(theta), np.degrees(speed), np.degrees(acceleration)])
+    np.savetxt(path, table, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.10g")
+    return int(t.size)
+
+
+def _animate(path: str, safe: Any, trajectory: Any) -> str:
+    """A meshcat page of the motion (the viz extra)."""
+    try:  # imported here: meshcat is an optional dependency (the viz extra)
+        from ..viz import Visualizer
+    except ImportError as exc:
+        raise _UsageError(str(exc)) from exc
+    viz = Visualizer(safe.robot)
+    theta, _, _ = trajectory.sample(trajectory.times_at_rate(ANIMATION_FPS))
+    viz.animate(theta, dt=1.0 / ANIMATION_FPS)
+    return str(viz.save_html(path))
 
 
 def _end(args: argparse.Namespace, which: str) -> Any:
@@ -100,7 +104,10 @@ def plan_record(args: argparse.Namespace) -> Record:
     path = plan(
         _end(args, "from"), _end(args, "to"), settings=settings, turns=args.turns, safe=safe
     )
-    times = path_times(path.theta, limits.max_speed, limits.max_acceleration)
+    try:
+        trajectory = path.timed(limits)
+    except ImportError as exc:
+        raise _UsageError(str(exc)) from exc
     samples = safe.densify(path.theta)
     every = max(1, samples.shape[0] // DISTANCE_SAMPLES)
     checker = checker_of(safe.robot)
@@ -110,10 +117,12 @@ def plan_record(args: argparse.Namespace) -> Record:
     from ..kinematics import forward_kinematics
 
     R_goal = np.asarray(forward_kinematics(path.goal, safe.design).R, dtype=float)
-    return {
+    record: Record = {
         "theta_deg": np.degrees(path.theta),
-        "t_s": times,
-        "duration_s": float(times[-1]),
+        "t_s": trajectory.times,
+        "duration_s": trajectory.duration,
+        "smoothed": trajectory.smoothed,
+        "trapezoid_duration_s": trajectory.trapezoid_duration,
         "length_deg": path.length_deg,
         "straight_length_deg": path.straight_length_deg,
         "grid_length_deg": path.grid_length_deg,
@@ -133,6 +142,13 @@ def plan_record(args: argparse.Namespace) -> Record:
             "min_singularity_margin": settings.min_singularity_margin,
         },
     }
+    if args.out is not None:
+        write_csv(args.out, trajectory, args.rate)
+        record["csv"] = str(args.out)
+        record["rate_hz"] = args.rate
+    if args.html is not None:
+        record["html"] = _animate(args.html, safe, trajectory)
+    return record
 
 
 def _run_plan(args: argparse.Namespace) -> int:
@@ -151,6 +167,13 @@ def _dexterity(text: str) -> float:
     value = _number(text)
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"the dexterity lies in [0, 1], got {text}")
+    return value
+
+
+def _rate(text: str) -> float:
+    value = _number(text)
+    if not 0.0 < value <= 100000.0:
+        raise argparse.ArgumentTypeError(f"the rate lies in (0, 100000] Hz, got {text}")
     return value
 
 
@@ -242,6 +265,26 @@ def add_parser(commands: Any) -> None:
         default=0.0,
         metavar="D",
         help="smallest dexterity 1/kappa(J) along the path (default: 0)",
+    )
+    parser.add_argument(
+        "--out",
+        metavar="FILE.csv",
+        default=None,
+        help="write the timed motion sampled at --rate: t_s, theta1_deg..theta3_deg, their "
+        "speeds [deg/s] and accelerations [deg/s^2]",
+    )
+    parser.add_argument(
+        "--rate",
+        type=_rate,
+        default=100.0,
+        metavar="HZ",
+        help="sampling rate of --out [Hz] (default: 100)",
+    )
+    parser.add_argument(
+        "--html",
+        metavar="FILE",
+        default=None,
+        help="write a meshcat animation of the motion (the viz extra)",
     )
     _add_design_option(parser)
     _add_json_option(parser)

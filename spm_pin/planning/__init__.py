@@ -7,6 +7,9 @@
 * :func:`plan`: a safe, near-shortest path between input angles or orientations,
   the mechanism turned the shortest way about its axis (or whole turns more)
   (:mod:`spm_pin.planning.planner`).
+* :meth:`PlannedPath.timed`, :func:`time_path`: the fastest motion along a path
+  under the servos' speed and acceleration limits, sampled at any rate (TOPP-RA, the
+  ``planning`` extra) (:mod:`spm_pin.planning.timing`).
 """
 
 from __future__ import annotations
@@ -21,16 +24,30 @@ from .safe_set import (
     SafeSet,
     safe_set,
 )
+from .timing import (
+    MotionLimits,
+    TimingLimits,
+    Trajectory,
+    certify_curve,
+    time_path,
+    trapezoid_duration,
+)
 
 __all__ = [
     "LIPSCHITZ_FACTOR",
     "YAW_TOLERANCE_M",
     "Evaluation",
     "Lipschitz",
+    "MotionLimits",
     "PlanSettings",
     "PlannedPath",
     "SafeSet",
+    "TimingLimits",
+    "Trajectory",
+    "certify_curve",
     "gap_length",
     "plan",
     "safe_set",
+    "time_path",
+    "trapezoid_duration",
 ]

@@ -33,6 +33,7 @@ from ..errors import InputError, PlanningError
 from ..kinematics import forward_kinematics, inverse_kinematics
 from ..rotations import rpy_from_matrix
 from .safe_set import PlanSettings, SafeSet, safe_set
+from .timing import MotionLimits, Trajectory, time_path
 
 __all__ = ["PlannedPath", "gap_length", "plan"]
 
@@ -67,6 +68,7 @@ class PlannedPath:
             turn.
         planning_time_ms: Time to plan [ms] (the safe set's build not included).
         settings: The thresholds used.
+        safe: The safe set it was planned in (certifies a smoothed timing).
     """
 
     theta: FloatArray
@@ -79,6 +81,7 @@ class PlannedPath:
     turns: int
     planning_time_ms: float
     settings: PlanSettings
+    safe: SafeSet | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
     def start(self) -> FloatArray:
@@ -91,6 +94,29 @@ class PlannedPath:
         """The goal [rad], (3,)."""
         result: FloatArray = self.theta[-1].copy()
         return result
+
+    def timed(
+        self,
+        limits: MotionLimits | None = None,
+        *,
+        smooth: bool = True,
+        safe: SafeSet | None = None,
+    ) -> Trajectory:
+        """The fastest motion along this path under joint speed and acceleration
+        limits, from rest to rest (:func:`~spm_pin.planning.timing.time_path`; needs
+        toppra, ``pip install 'spm-pin[planning]'``).
+
+        Args:
+            limits: Joint limits with ``max_speed`` [rad/s] and ``max_acceleration``
+                [rad/s^2] (default: the servos' guard's).
+            smooth: Round the corners with a spline when it is certified safe
+                (otherwise the motion stops at every corner).
+            safe: The safe set that certifies the rounded corners (default: the one
+                the path was planned in).
+        """
+        return time_path(
+            self.theta, limits, safe=self.safe if safe is None else safe, smooth=smooth
+        )
 
 
 def _length_deg(theta: FloatArray) -> float:
@@ -287,6 +313,7 @@ def plan(
         turns=int(turns),
         planning_time_ms=1e3 * (time.perf_counter() - begin),
         settings=safe.settings,
+        safe=safe,
     )
 
 
