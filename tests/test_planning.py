@@ -20,7 +20,7 @@ from spm_pin.cli import main
 from spm_pin.errors import InputError, PlanningError
 from spm_pin.hardware.config import SafetyLimits
 from spm_pin.hardware.guard import SafetyGuard
-from spm_pin.planning import PlanSettings, SafeSet, gap_length, plan, safe_set
+from spm_pin.planning import PlanSettings, SafeSet, gap_length, plan, safe_set_of
 from spm_pin.rotations import matrix_from_rpy
 
 #: Two safe inputs whose straight line passes a collision (proximal_1-distal_2) [deg].
@@ -37,7 +37,7 @@ DENSE_DEG = 0.05
 
 @pytest.fixture(scope="module")
 def safe() -> SafeSet:
-    return safe_set()
+    return safe_set_of()
 
 
 @pytest.fixture(scope="module")
@@ -168,7 +168,7 @@ def test_the_lipschitz_bounds_hold_at_random_nearby_states(safe: SafeSet) -> Non
 
 
 def test_gap_length_is_the_input_space_length_without_turning() -> None:
-    safe = safe_set()
+    safe = safe_set_of()
     d12, d23 = np.array([120.0, 150.0, 100.0]), np.array([120.0, 100.0, 140.0])
     theta = safe.theta_of(d12, d23, 0.0)  # the mean input held
     expected = np.sum(np.linalg.norm(np.degrees(np.diff(theta, axis=0)), axis=1))
@@ -207,3 +207,24 @@ def test_spm_plan_orientation_goal(capsys: pytest.CaptureFixture[str]) -> None:
     record = json.loads(capsys.readouterr().out)
     np.testing.assert_allclose(record["goal_rpy_deg"], [0.0, 20.0, 45.0], atol=1e-9)
     assert record["turns"] == 1
+
+
+def test_the_path_picture(safe: SafeSet, tmp_path: Any) -> None:
+    from spm_pin.planning import path_figure
+
+    path = plan(np.radians(NOTCH_START_DEG), np.radians(NOTCH_GOAL_DEG), safe=safe)
+    fig = path_figure(safe, path)
+    ax = fig.axes[0]
+    labels = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert labels[:2] == ["safe", "unsafe"]
+    assert labels[2] == f"planned path: {path.length_deg:.1f} deg"
+    assert "[deg]" in ax.get_xlabel() and "[deg]" in ax.get_ylabel()
+    # The drawn path starts and ends at the gaps of the path's ends.
+    line = ax.get_lines()[0]
+    d12, d23, _ = safe.gaps_of(path.theta[[0, -1]])
+    np.testing.assert_allclose(line.get_ydata()[[0, -1]], d12, atol=1e-9)
+    np.testing.assert_allclose(line.get_xdata()[[0, -1]], d23, atol=1e-9)
+    out = tmp_path / "plan.png"
+    assert main(["plan", "--from", *map(str, NOTCH_START_DEG), "--to",
+                 *map(str, NOTCH_GOAL_DEG), "--png", str(out), "--json"]) == 0  # fmt: skip
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000

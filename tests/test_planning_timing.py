@@ -31,7 +31,7 @@ from spm_pin.planning import (
     TimingLimits,
     Trajectory,
     plan,
-    safe_set,
+    safe_set_of,
     time_path,
     trapezoid_duration,
 )
@@ -62,7 +62,7 @@ TOL = {
 
 @pytest.fixture(scope="module")
 def safe() -> SafeSet:
-    return safe_set()
+    return safe_set_of()
 
 
 @pytest.fixture(scope="module")

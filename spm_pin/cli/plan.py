@@ -6,7 +6,7 @@ Command::
     spm plan [--from T1 T2 T3 | --from-rpy R P Y | --from-quaternion W X Y Z]
              (--to T1 T2 T3 | --to-rpy R P Y | --quaternion W X Y Z)
              [--turns N] [--margin-mm MM] [--min-dexterity D] [--design NAME|FILE] [--json]
-             [--out FILE.csv [--rate HZ]] [--html FILE]
+             [--out FILE.csv [--rate HZ]] [--html FILE] [--png FILE]
 
 Prints the waypoints and their times along the fastest motion under the servos' guard
 limits (time-optimal along the path, corners rounded where a spline is certified
@@ -92,7 +92,7 @@ def plan_record(args: argparse.Namespace) -> Record:
     """The record ``spm plan`` prints."""
     from ..collision import checker_of
     from ..hardware.config import SafetyLimits
-    from ..planning import PlanSettings, plan, safe_set
+    from ..planning import PlanSettings, plan, safe_set_of
 
     limits = SafetyLimits()
     settings = PlanSettings(
@@ -100,7 +100,7 @@ def plan_record(args: argparse.Namespace) -> Record:
         min_dexterity=args.min_dexterity,
         min_singularity_margin=limits.min_singularity_margin,
     )
-    safe = safe_set(_design(args), settings)
+    safe = safe_set_of(_design(args), settings)
     path = plan(
         _end(args, "from"), _end(args, "to"), settings=settings, turns=args.turns, safe=safe
     )
@@ -148,6 +148,10 @@ def plan_record(args: argparse.Namespace) -> Record:
         record["rate_hz"] = args.rate
     if args.html is not None:
         record["html"] = _animate(args.html, safe, trajectory)
+    if args.png is not None:
+        from ..planning import save_path_figure
+
+        record["png"] = str(save_path_figure(args.png, safe, path))
     return record
 
 
@@ -285,6 +289,12 @@ def add_parser(commands: Any) -> None:
         metavar="FILE",
         default=None,
         help="write a meshcat animation of the motion (the viz extra)",
+    )
+    parser.add_argument(
+        "--png",
+        metavar="FILE",
+        default=None,
+        help="draw the path on the safe set in the gap plane (PNG; the plot extra)",
     )
     _add_design_option(parser)
     _add_json_option(parser)

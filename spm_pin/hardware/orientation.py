@@ -50,7 +50,7 @@ SLIDE_BISECTIONS = 12
 
 
 def _safe_set(sync: ServoSync, safe: SafeSet | None) -> SafeSet:
-    from ..planning import PlanSettings, safe_set
+    from ..planning import PlanSettings, safe_set_of
 
     if safe is not None:
         return safe
@@ -60,7 +60,7 @@ def _safe_set(sync: ServoSync, safe: SafeSet | None) -> SafeSet:
         min_dexterity=limits.min_dexterity,
         min_singularity_margin=limits.min_singularity_margin,
     )
-    return safe_set(sync.design, settings)
+    return safe_set_of(sync.design, settings)
 
 
 def _segment_goals(a0: FloatArray, a1: FloatArray, v: float, a: float, period: float) -> FloatArray:

@@ -10,11 +10,14 @@
 * :meth:`PlannedPath.timed`, :func:`time_path`: the fastest motion along a path
   under the servos' speed and acceleration limits, sampled at any rate (TOPP-RA, the
   ``planning`` extra) (:mod:`spm_pin.planning.timing`).
+* :func:`path_figure`: planned paths drawn on the safe set in the gap plane
+  (matplotlib, the ``plot`` extra) (:mod:`spm_pin.planning.plots`).
 """
 
 from __future__ import annotations
 
 from .planner import PlannedPath, gap_length, plan
+from .plots import path_figure, save_path_figure
 from .safe_set import (
     LIPSCHITZ_FACTOR,
     YAW_TOLERANCE_M,
@@ -22,7 +25,7 @@ from .safe_set import (
     Lipschitz,
     PlanSettings,
     SafeSet,
-    safe_set,
+    safe_set_of,
 )
 from .timing import (
     MotionLimits,
@@ -46,8 +49,10 @@ __all__ = [
     "Trajectory",
     "certify_curve",
     "gap_length",
+    "path_figure",
     "plan",
-    "safe_set",
+    "safe_set_of",
+    "save_path_figure",
     "time_path",
     "trapezoid_duration",
 ]

@@ -32,7 +32,7 @@ from ..design import SPMDesign
 from ..errors import InputError, PlanningError
 from ..kinematics import forward_kinematics, inverse_kinematics
 from ..rotations import rpy_from_matrix
-from .safe_set import PlanSettings, SafeSet, safe_set
+from .safe_set import PlanSettings, SafeSet, safe_set_of
 from .timing import MotionLimits, Trajectory, time_path
 
 __all__ = ["PlannedPath", "gap_length", "plan"]
@@ -291,7 +291,7 @@ def plan(
     if isinstance(turns, bool) or not isinstance(turns, int | np.integer):
         raise InputError(f"turns must be a whole number, got {turns!r}", argument="turns")
     if safe is None:
-        safe = safe_set(design or SPMDesign.prototype(), settings or PlanSettings())
+        safe = safe_set_of(design or SPMDesign.prototype(), settings or PlanSettings())
     begin = time.perf_counter()
     theta0 = _end(start, "start", safe, None, 0)
     theta1 = _end(goal, "goal", safe, float(np.mean(theta0)), int(turns))

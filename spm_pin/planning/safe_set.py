@@ -50,7 +50,7 @@ __all__ = [
     "Lipschitz",
     "PlanSettings",
     "SafeSet",
-    "safe_set",
+    "safe_set_of",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -418,6 +418,7 @@ class SafeSet:
 
 
 @lru_cache(maxsize=4)
-def safe_set(design: SPMDesign | None = None, settings: PlanSettings | None = None) -> SafeSet:
-    """The safe set of a design (built once per design and settings in a process)."""
+def safe_set_of(design: SPMDesign | None = None, settings: PlanSettings | None = None) -> SafeSet:
+    """The safe set of a design, built once per design and settings in a process (a
+    few seconds) and shared by every later call."""
     return SafeSet(design or SPMDesign.prototype(), settings or PlanSettings())
