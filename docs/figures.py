@@ -249,6 +249,28 @@ def workspace_figure(out: Path, step_deg: float = 2.0) -> Path:
     return path
 
 
+def planning_figure(out: Path) -> Path:
+    """Write ``plan_paths.png`` (two planned paths on the prototype's safe set) into
+    ``out``; its path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from spm_pin.planning import path_figure, plan, safe_set_of
+    from spm_pin.rotations import matrix_from_rpy
+
+    safe = safe_set_of()
+    detour = plan(np.radians([71.0, 8.0, 67.0]), np.radians([33.0, -37.0, 8.0]), safe=safe)
+    pointing = plan(np.zeros(3), matrix_from_rpy(np.radians([0.0, 20.0, 45.0])), safe=safe)
+    figure = path_figure(safe, detour, pointing)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "plan_paths.png"
+    figure.savefig(path, dpi=90, metadata={"Software": None})
+    plt.close(figure)
+    return path
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "images")
@@ -258,6 +280,7 @@ def main() -> None:
     args = parser.parse_args()
     print(conventions_figure(args.out))
     print(workspace_figure(args.out, args.workspace_step))
+    print(planning_figure(args.out))
 
 
 if __name__ == "__main__":
