@@ -410,6 +410,14 @@ def figures_hardware(data: Mapping[str, Any]) -> list[Figure]:
             peer=bus["sync_read_plain"],
         ),
         timed("guard_cold", "hardware: safety check of a new goal", results["guard_cold"]),
+        timed(
+            "control_cycle",
+            "hardware: streaming cycle of a new orientation target (IK, guard, pulses)",
+            results["control_cycle"]["fast"],
+            peer_name="batch path",
+            peer=results["control_cycle"]["batch"],
+            targets=("control_cycle_median",),
+        ),
     ]
 
 

@@ -28,8 +28,11 @@ measured:
    one goal per call, and the whole-path check per sample.
 4. ``wire``: the bytes one cycle puts on a real 1 Mbps bus (10 bits a byte, Return
    Delay Time 0), to add to the loop time on real hardware.
-5. ``targets``: the software part of a cycle (kinematics + guard, no model update) at
-   >= 500 Hz.
+5. ``control_cycle``: one streaming cycle of a new orientation target (inverse
+   kinematics, the guard's static checks, Goal Positions) on the single-input fast
+   path, with its stages, beside the batch path (the same calls on (1, 3) arrays).
+6. ``targets``: the software part of a cycle (kinematics + guard, no model update) at
+   >= 500 Hz; the streaming cycle's median <= 100 us.
 """
 
 from __future__ import annotations
@@ -59,6 +62,7 @@ from spm_pin.hardware import (  # noqa: E402
 )
 from spm_pin.hardware.driver import STATE_BLOCK  # noqa: E402
 from spm_pin.hardware.emulated_bus import LATENCY_TIMER_MS  # noqa: E402
+from spm_pin.hardware.joints import JointMap  # noqa: E402
 
 from ._common import (  # noqa: E402
     Timing,
@@ -78,6 +82,9 @@ from ._common import (  # noqa: E402
 DEMO_DEG = (60.0, 90.0, 120.0)
 #: The project's target for the software part of a cycle [Hz].
 TARGET_SOFTWARE_RATE = 500.0
+#: The project's target for one streaming cycle (target -> IK -> guard -> pulses),
+#: median [s].
+TARGET_CONTROL_CYCLE_S = 100e-6
 #: Loop rate the streamed path is planned for [Hz] (faster than the loop runs, so the
 #: commanded speed stays below the guard's limit).
 PLAN_RATE_HZ = 1000.0
@@ -219,6 +226,47 @@ def bench_guard(robot: spm.SPMRobot, n: int) -> dict[str, Any]:
     }
 
 
+def bench_control_cycle(robot: spm.SPMRobot, n: int) -> dict[str, Any]:
+    """One streaming cycle of orientation targets never seen before: target R ->
+    home-mode inverse kinematics -> the guard's static checks -> Goal Positions, on the
+    single-input fast path and, as the peer, on the batch path (the same functions with
+    (1, 3) arrays, as every cycle ran before the fast path), with each stage's time."""
+    rng = np.random.default_rng(SEED + 1)
+    base = np.radians(DEMO_DEG) * rng.uniform(0.0, 1.0, size=(n, 1)) + rng.normal(0, 0.01, (n, 3))
+    targets = list(spm.forward_kinematics(base, robot.design).R)
+    joints = JointMap(HardwareConfig().joints)
+    fast_guard, batch_guard = SafetyGuard(robot), SafetyGuard(robot)
+    stages: dict[str, list[float]] = {"ik": [], "guard": [], "pulses": []}
+
+    def fast(R: np.ndarray) -> dict[int, int]:
+        t0 = time.perf_counter()
+        theta = spm.inverse_kinematics(R, robot.design).theta
+        t1 = time.perf_counter()
+        fast_guard.check(theta).require()
+        t2 = time.perf_counter()
+        pulses = joints.to_pulses(theta)
+        stages["ik"].append(t1 - t0)
+        stages["guard"].append(t2 - t1)
+        stages["pulses"].append(time.perf_counter() - t2)
+        return pulses
+
+    def batch(R: np.ndarray) -> dict[int, int]:
+        theta = spm.inverse_kinematics(R[None], robot.design).theta[0]
+        batch_guard._compute(theta[None])[0].require()
+        return joints.to_pulses(theta)
+
+    fast_timing, fast_pulses = time_each(fast, targets, warmup=0)
+    batch_timing, batch_pulses = time_each(batch, targets, warmup=0)
+    share = {name: float(np.median(values)) for name, values in stages.items()}
+    return {
+        "fast": fast_timing.summary(),
+        "batch": batch_timing.summary(),
+        "stages_median_s": share,
+        "n": n,
+        "same_goals": fast_pulses == batch_pulses,
+    }
+
+
 def wire_estimate() -> dict[str, Any]:
     """Bytes of one cycle on a real bus and their time at WIRE_BAUD."""
     n = 3
@@ -262,8 +310,10 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             bus, emulated, guard, cycles, reach, update_model=True
         )
     results["guard_cold"] = bench_guard(robot, int(sizes["guard"]))
+    results["control_cycle"] = bench_control_cycle(robot, int(sizes["guard"]))
     results["wire"] = wire_estimate()
     software = results["loop"]["software"]["per_second"]
+    cycle = results["control_cycle"]["fast"]["median_s"]
     return {
         "benchmark": "hardware",
         "machine": machine_info(
@@ -284,7 +334,10 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             {
                 "software_per_second": target(
                     software, TARGET_SOFTWARE_RATE, at_least=True, unit="Hz"
-                )
+                ),
+                "control_cycle_median": target(
+                    cycle, TARGET_CONTROL_CYCLE_S, at_least=False, unit="s"
+                ),
             }
         ),
     }
@@ -343,6 +396,20 @@ def report(payload: dict[str, Any]) -> str:
             format_rate(guard["per_second"]),
         ]
     )
+    cycle = results["control_cycle"]
+    for key, label in (
+        ("fast", "control cycle, fast path"),
+        ("batch", "control cycle, batch path"),
+    ):
+        rows.append(
+            [
+                label,
+                format_count(cycle["n"]),
+                format_seconds(cycle[key]["median_s"]),
+                format_seconds(cycle[key]["p95_s"]),
+                format_rate(cycle[key]["per_second"]),
+            ]
+        )
     table = format_table(["case", "n", "median", "p95", "rate"], rows)
     wire = results["wire"]
     loop = results["loop"]
@@ -359,6 +426,12 @@ def report(payload: dict[str, Any]) -> str:
     lines = (
         f"Targets\n  {status}  software part of a cycle (kinematics + guard): "
         f"{format_rate(t['value'])} (>= {format_rate(t['threshold'])})"
+    )
+    c = payload["targets"]["control_cycle_median"]
+    lines += (
+        f"\n  {'PASS' if c['pass'] else 'FAIL'}  one streaming cycle (target -> IK -> guard -> "
+        f"Goal Position), median: {format_seconds(c['value'])} (<= "
+        f"{format_seconds(c['threshold'])})"
     )
     head = "spm-pin hardware benchmark: ServoSync against the emulated XM540-W150 bus"
     return "\n\n".join([head, table, notes, lines])

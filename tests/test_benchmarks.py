@@ -219,7 +219,7 @@ def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert data["benchmark"] == "hardware" and data["config"]["quick"] is True
     assert {"dynamixel-sdk", "pin"} <= set(data["machine"]["packages"])
     results = data["results"]
-    assert set(results) == {"bus", "loop", "loop_with_model", "guard_cold", "wire"}
+    assert set(results) == {"bus", "loop", "loop_with_model", "guard_cold", "control_cycle", "wire"}
     for name in ("sync_read_fast", "sync_read_plain", "sync_write"):
         assert results["bus"][name]["p95_s"] >= results["bus"][name]["median_s"] > 0, name
     for name in ("loop", "loop_with_model"):
@@ -229,7 +229,11 @@ def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
         assert loop["cycle"]["median_s"] >= loop["software"]["median_s"] > 0, name
     assert results["guard_cold"]["safe_fraction"] == 1.0
     assert results["wire"]["bytes_fast"] < results["wire"]["bytes_plain"]
-    assert set(data["targets"]) == {"software_per_second", "all_pass"}
+    cycle = results["control_cycle"]
+    assert cycle["same_goals"] is True
+    assert cycle["fast"]["median_s"] < cycle["batch"]["median_s"]
+    assert set(cycle["stages_median_s"]) == {"ik", "guard", "pulses"}
+    assert set(data["targets"]) == {"software_per_second", "control_cycle_median", "all_pass"}
 
 
 def test_quick_dynamics_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -250,6 +254,11 @@ def test_quick_dynamics_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
             assert results[f"ours_{name}_{case}"]["max_closure_residual"] <= 1e-10
             assert f"mujoco_{name}_{case}" in results
     assert {"inverse_trajectory", "forward_pinocchio", "forward_nullspace"} <= set(results)
+    for n in (1, 64, 4096):
+        assert results[f"reduced_euler_n{n}"]["n"] % n == 0
+    assert data["accuracy"]["reduced"]["closure_drift_rad"] == 0.0
+    assert 0.0 <= data["accuracy"]["reduced"]["constrained_closure_drift_rad"] <= 1e-10
+    assert data["comparison"]["reduced_batched_vs_ours_euler"] > 0
     for name, entry in results.items():
         assert entry["per_second"] > 0 and entry["p95_s"] >= entry["median_s"], name
     accuracy = data["accuracy"]

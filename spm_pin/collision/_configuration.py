@@ -4,6 +4,7 @@ in the home assembly mode, in Python floats, and the check of a batch of q."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -16,7 +17,7 @@ from ..model.robot import CLOSURE_TOL
 from ._shapes import cross, dot, turn
 from .pairs import FloatArray
 
-__all__ = ["Legs", "as_q_batch", "leg_axes", "theta_configuration"]
+__all__ = ["Legs", "as_q_batch", "leg_axes", "rotation_configuration", "theta_configuration"]
 
 #: Per leg: u_i, w_i0, v_i0 as float tuples.
 Legs = tuple[tuple[tuple[float, ...], ...], ...]
@@ -47,10 +48,22 @@ def theta_configuration(theta: FloatArray, design: SPMDesign, legs: Legs) -> Flo
             "'home'; filter inputs with spm.forward_kinematics(theta, design).reachable",
             value=theta,
         )
-    columns = tuple(zip(*fk.R.tolist(), strict=True))
+    return rotation_configuration(theta.tolist(), fk.R.tolist(), legs)
+
+
+def rotation_configuration(
+    theta: Sequence[float], rotation: Sequence[Sequence[float]], legs: Legs
+) -> FloatArray:
+    """The closed q of one theta (3 floats) whose home-mode platform rotation (rows)
+    is known: what :func:`theta_configuration` computes after its forward kinematics.
+
+    Raises:
+        ConvergenceError: the rotation does not fit the legs at theta.
+    """
+    columns = tuple(zip(*rotation, strict=True))
     q: list[float] = []
     worst = 0.0
-    for angle, u, w0, v0 in zip(theta.tolist(), *legs, strict=True):
+    for angle, u, w0, v0 in zip(theta, *legs, strict=True):
         # Columns of P^T R: R's columns turned by -theta about u.
         c, s = math.cos(angle), math.sin(angle)
         p0, p1, p2 = (turn(u, c, -s, column) for column in columns)
@@ -94,7 +107,7 @@ def theta_configuration(theta: FloatArray, design: SPMDesign, legs: Legs) -> Flo
         raise ConvergenceError(
             f"the platform rotation does not fit leg geometry at theta = "
             f"{np.degrees(theta).tolist()} deg: residual {worst:.3g}",
-            data={"theta": theta, "R": fk.R, "residual": worst},
+            data={"theta": np.asarray(theta), "R": np.asarray(rotation), "residual": worst},
         )
     return np.array(q)
 

@@ -109,6 +109,7 @@ from .closed_loop import (
 )
 from .mujoco import simulate_mujoco
 from .plots import plot_torques
+from .reduced import REDUCED_CLOSURE_TOL, ReducedDynamics, ReducedStep, ReducedTerms
 from .servo import XM540_W150, JointFriction, ServoCheck, ServoModel, check_servo
 from .simulator import Controller as Controller
 from .simulator import SimulationResult, Simulator
@@ -122,11 +123,15 @@ __all__ = [
     "GRAVITY",
     "INTEGRATORS",
     "PROXIMAL_MU",
+    "REDUCED_CLOSURE_TOL",
     "XM540_W150",
     "ClosedLoopDynamics",
     "ForwardDynamicsResult",
     "InverseDynamicsResult",
     "JointFriction",
+    "ReducedDynamics",
+    "ReducedStep",
+    "ReducedTerms",
     "ServoCheck",
     "ServoController",
     "ServoModel",

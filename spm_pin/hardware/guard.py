@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import functools
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,6 +36,7 @@ import numpy.typing as npt
 from ..design import SPMDesign
 from ..errors import InputError, SPMError, UnsafeCommandError
 from ..kinematics import forward_kinematics, jacobian
+from ._fast import FastStatic
 from .config import SafetyLimits
 
 if TYPE_CHECKING:
@@ -167,6 +170,7 @@ class SafetyGuard:
         self._cache: collections.OrderedDict[bytes, Verdict] = collections.OrderedDict()
         self._cache_size = int(cache_size)
         self.stats = collections.Counter[str]()
+        self._fast = FastStatic.of(robot, self.limits)
 
     def __repr__(self) -> str:
         return f"SafetyGuard(design={self.design.name!r}, limits={self.limits!r})"
@@ -175,13 +179,15 @@ class SafetyGuard:
     def _limit_reasons(self, theta: FloatArray) -> list[str]:
         limits = self.limits
         reasons = []
-        if not np.all(np.isfinite(theta)):
-            return [f"theta {theta.tolist()} is not finite"]
+        values = theta.tolist()
+        # A non-finite sum (NaN, or inf - inf) or a huge one: look at each value.
+        if not math.isfinite(sum(values)) and not all(math.isfinite(x) for x in values):
+            return [f"theta {values} is not finite"]
         for i in range(3):
             low, high = limits.theta_min[i], limits.theta_max[i]
-            if not low <= theta[i] <= high:
+            if not low <= values[i] <= high:
                 reasons.append(
-                    f"theta_{i + 1} = {math.degrees(theta[i]):.3f} deg is outside the joint "
+                    f"theta_{i + 1} = {math.degrees(values[i]):.3f} deg is outside the joint "
                     f"limits [{math.degrees(low):.1f}, {math.degrees(high):.1f}] deg"
                 )
         return reasons
@@ -205,13 +211,47 @@ class SafetyGuard:
                 self._remember(verdict)
         return [v for v in verdicts if v is not None]
 
+    def _static_one(self, theta: FloatArray) -> Verdict:
+        """The static verdict of one goal (3,): cached, else the fast path."""
+        key = theta.tobytes()
+        cached = self._cache.get(key)
+        if cached is not None:
+            self._cache.move_to_end(key)
+            self.stats["cache_hits"] += 1
+            return cached
+        verdict = self.static_verdict(theta)
+        self._remember(verdict)
+        return verdict
+
+    def static_verdict(self, theta: FloatArray) -> Verdict:
+        """The static checks (1-4) of one goal (3,) [rad], uncached, on the fast path.
+
+        The same verdict as the batch checks give, bit for bit (the measures and the
+        collision check from the single-input code of :mod:`._fast`); goals that are
+        not finite take the batch path.
+        """
+        if self._fast is None or not math.isfinite(sum(theta.tolist())):
+            return self._compute(theta[None])[0]
+        self.stats["computed"] += 1
+        reasons = self._limit_reasons(theta)
+        reachable, margin, dexterity, rotation = self._fast.measures(theta.tolist())
+
+        fast = self._fast
+
+        def collide() -> tuple[LinkPair, ...]:  # called only where reachable
+            try:
+                return fast.collisions(theta.tolist(), rotation)
+            except SPMError as exc:  # as in _collisions
+                return (("model", f"error: {exc}"),)
+
+        return self._verdict(theta, reasons, True, reachable, margin, dexterity, collide)
+
     def _remember(self, verdict: Verdict) -> None:
         self._cache[verdict.theta.tobytes()] = verdict
         while len(self._cache) > self._cache_size:
             self._cache.popitem(last=False)
 
     def _compute(self, thetas: FloatArray) -> list[Verdict]:
-        limits = self.limits
         n = thetas.shape[0]
         self.stats["computed"] += n
         finite = np.all(np.isfinite(thetas), axis=-1)
@@ -227,37 +267,59 @@ class SafetyGuard:
         verdicts = []
         for k in range(n):
             theta = thetas[k].copy()
-            reasons = self._limit_reasons(theta)
-            pairs: tuple[LinkPair, ...] = ()
-            if not reachable[k]:
-                if finite[k]:
-                    reasons.append("no home-mode assembly exists there (unreachable)")
-            else:
-                if not margin[k] >= limits.min_singularity_margin:
-                    reasons.append(
-                        f"too close to a singularity: margin {margin[k]:.4f} < "
-                        f"{limits.min_singularity_margin:g}"
-                    )
-                if not dexterity[k] >= limits.min_dexterity:
-                    reasons.append(f"dexterity {dexterity[k]:.4f} < {limits.min_dexterity:g}")
-                pairs = self._collisions(theta)
-                if pairs:
-                    names = ", ".join(f"{a}-{b}" for a, b in pairs)
-                    reasons.append(
-                        f"links collide (margin {limits.collision_margin * 1e3:g} mm): {names}"
-                    )
             verdicts.append(
-                Verdict(
-                    theta=theta,
-                    safe=not reasons,
-                    reasons=tuple(reasons),
-                    reachable=bool(reachable[k]),
-                    singularity_margin=float(margin[k]),
-                    dexterity=float(dexterity[k]),
-                    collisions=pairs,
+                self._verdict(
+                    theta,
+                    self._limit_reasons(theta),
+                    bool(finite[k]),
+                    bool(reachable[k]),
+                    float(margin[k]),
+                    float(dexterity[k]),
+                    functools.partial(self._collisions, theta),
                 )
             )
         return verdicts
+
+    def _verdict(
+        self,
+        theta: FloatArray,
+        reasons: list[str],
+        finite: bool,
+        reachable: bool,
+        margin: float,
+        dexterity: float,
+        collide: Callable[[], tuple[LinkPair, ...]],
+    ) -> Verdict:
+        """The verdict from the limit reasons and the measures; ``collide`` runs the
+        collision check (only where the goal is reachable)."""
+        limits = self.limits
+        pairs: tuple[LinkPair, ...] = ()
+        if not reachable:
+            if finite:
+                reasons.append("no home-mode assembly exists there (unreachable)")
+        else:
+            if not margin >= limits.min_singularity_margin:
+                reasons.append(
+                    f"too close to a singularity: margin {margin:.4f} < "
+                    f"{limits.min_singularity_margin:g}"
+                )
+            if not dexterity >= limits.min_dexterity:
+                reasons.append(f"dexterity {dexterity:.4f} < {limits.min_dexterity:g}")
+            pairs = collide()
+            if pairs:
+                names = ", ".join(f"{a}-{b}" for a, b in pairs)
+                reasons.append(
+                    f"links collide (margin {limits.collision_margin * 1e3:g} mm): {names}"
+                )
+        return Verdict(
+            theta=theta,
+            safe=not reasons,
+            reasons=tuple(reasons),
+            reachable=reachable,
+            singularity_margin=margin,
+            dexterity=dexterity,
+            collisions=pairs,
+        )
 
     def _collisions(self, theta: FloatArray) -> tuple[LinkPair, ...]:
         try:
@@ -288,7 +350,7 @@ class SafetyGuard:
             The verdict (``verdict.require()`` raises when unsafe).
         """
         goal = _as_theta(theta)
-        verdict = self._static_batch(goal[None])[0]
+        verdict = self._static_one(goal)
         rate_reasons: list[str] = []
         if previous is not None and period is not None:
             rate_reasons = self._rate_reasons(

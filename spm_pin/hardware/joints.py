@@ -98,14 +98,17 @@ class JointMap:
             raise InputError(
                 f"theta must be 3 finite angles [rad], got {theta!r}", argument="theta", value=theta
             )
-        pulses = (
-            self._zero
-            + PULSES_PER_TURN * np.asarray(self.turns)
-            + self._direction * self._gear * values / POSITION_UNIT
-        )
+        # In Python floats, in the order (and so with the rounding) of the array formula
+        # zero + PULSES_PER_TURN * turns + direction * gear * theta / POSITION_UNIT.
+        pulses = [
+            joint.zero_offset
+            + PULSES_PER_TURN * turns
+            + joint.direction * joint.gear_ratio * x / POSITION_UNIT
+            for joint, turns, x in zip(self.joints, self.turns, values.tolist(), strict=True)
+        ]
         result: dict[int, int] = {}
         for joint, angle, value in zip(self.joints, values, pulses, strict=True):
-            goal = round(float(value))
+            goal = round(value)
             if abs(goal) > EXTENDED_POSITION_LIMIT:
                 raise InputError(
                     f"joint {joint.joint} at {math.degrees(float(angle)):.1f} deg needs Goal "

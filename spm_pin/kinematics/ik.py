@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from ..design import SPMDesign
 from ..errors import InputError, UnreachableError
+from . import _scalar
 from ._common import BoolArray, FloatArray, as_rotation, as_theta, check_design, mode_label
 
 __all__ = [
@@ -155,6 +156,8 @@ def inverse_kinematics(
     design = check_design(design)
     rotation = as_rotation(R)
     index = _mode_index(mode)
+    if rotation.ndim == 2 and index == 0 and theta_near is None:
+        return _home_one(rotation, design, R)  # the float path, same bits
     base, half, root, leg_ok = _solve_legs(rotation, design)
     signs = np.array([-1.0 if (index >> i) & 1 else 1.0 for i in range(3)])
     theta = _wrap(base - signs * half)
@@ -176,6 +179,27 @@ def inverse_kinematics(
         leg_reachable=leg_ok,
         b=signs * root,
         mode=WORKING_MODE_LABELS[index],
+    )
+
+
+def _home_one(rotation: FloatArray, design: SPMDesign, given: npt.ArrayLike) -> IKResult:
+    """``inverse_kinematics`` of one rotation in the home working mode, in floats."""
+    solved = _scalar.ik_home(rotation.tolist(), _scalar.constants(design))
+    if not all(solved.leg_reachable):
+        leg = solved.leg_reachable.index(False) + 1
+        p, q, s = solved.p[leg - 1], solved.q[leg - 1], solved.s[leg - 1]
+        gap = s * s - p * p - q * q
+        raise UnreachableError(
+            f"orientation unreachable: leg {leg} cannot close (P^2 + Q^2 - S^2 = {-gap:.3g} < 0)",
+            leg=leg,
+            value=np.asarray(given),
+        )
+    return IKResult(
+        theta=np.array(solved.theta),
+        reachable=np.bool_(True),  # type: ignore[arg-type]
+        leg_reachable=np.ones(3, dtype=bool),
+        b=np.array(solved.b),
+        mode=WORKING_MODE_LABELS[0],
     )
 
 

@@ -1,0 +1,82 @@
+"""The guard's static checks of one goal on the single-input fast path.
+
+:class:`~spm_pin.hardware.guard.SafetyGuard` checks a stream of goals one at a time.
+Through the batch functions one goal costs several hundred microseconds, nearly all
+of it numpy's per-call overhead on (1, 3) arrays. Here the same quantities come from
+the float code of :mod:`spm_pin.kinematics._scalar` (forward kinematics, singularity
+margin, dexterity: bit for bit the batch values) and the collision checker runs on the
+closed configuration built from that rotation (what ``robot.collisions(theta)``
+builds after its own forward kinematics), so the verdicts are the batch path's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from ..kinematics import _scalar
+from ..kinematics.jacobian import SINGULAR_TOL
+from .config import SafetyLimits
+
+if TYPE_CHECKING:
+    from ..collision._configuration import Legs
+    from ..collision.checker import CollisionChecker
+    from ..model.robot import SPMRobot
+
+__all__ = ["FastStatic"]
+
+Rows = Sequence[Sequence[float]]
+
+
+class FastStatic:
+    """The measures and the collision check of one goal for a robot and limits.
+
+    Build it with :meth:`of`, which gives None for robots whose collision check is not
+    the library's own (a replaced ``collisions`` method): their goals take the batch
+    path.
+    """
+
+    def __init__(self, robot: SPMRobot, checker: CollisionChecker, legs: Legs, margin: float):
+        self.robot = robot
+        self.constants = _scalar.constants(robot.design)
+        self._checker = checker
+        self._legs = legs
+        self._margin = margin
+
+    @classmethod
+    def of(cls, robot: object, limits: SafetyLimits) -> FastStatic | None:
+        """The fast path of ``robot``, or None where it does not apply."""
+        from ..collision._configuration import leg_axes
+        from ..collision.checker import CollisionChecker
+        from ..model.robot import SPMRobot
+
+        if not isinstance(robot, SPMRobot) or type(robot).collisions is not SPMRobot.collisions:
+            return None
+        if "collisions" in vars(robot):  # replaced on the instance
+            return None
+        checker = robot.collision_checker
+        if type(checker) is not CollisionChecker:
+            return None
+        return cls(robot, checker, leg_axes(robot.design), float(limits.collision_margin))
+
+    def measures(self, theta: Sequence[float]) -> tuple[bool, float, float, Rows | None]:
+        """(reachable, singularity margin, dexterity, platform rotation rows) of one
+        finite goal [rad]; NaN measures and no rotation where unreachable."""
+        k = self.constants
+        rotation = _scalar.fk_home(theta, k)
+        if rotation is None:
+            return False, float("nan"), float("nan"), None
+        margin, dexterity = _scalar.measures(theta, rotation, k, SINGULAR_TOL)
+        return True, margin, dexterity, rotation
+
+    def collisions(
+        self, theta: Sequence[float], rotation: Rows | None
+    ) -> tuple[tuple[str, str], ...]:
+        """Colliding link pairs (with the guard's margin) of a reachable goal."""
+        from ..collision._configuration import rotation_configuration
+
+        if rotation is None:
+            return ()
+        q = rotation_configuration(theta, rotation, self._legs)
+        pairs = self._checker.collisions(q, margin=self._margin)
+        return tuple((str(a), str(b)) for a, b in pairs)

@@ -1,0 +1,262 @@
+"""Single-input kinematics in plain Python floats, bit-identical to the batch code.
+
+A control loop solves one orientation or one input at a time, and there the batch
+functions spend nearly all of their time on numpy's per-call overhead. This module
+repeats their arithmetic for one input, operation for operation and in the same
+order, in Python floats:
+
+* :func:`ik_home`: ``inverse_kinematics(R)`` in the home working mode;
+* :func:`fk_home`: ``forward_kinematics(theta).R`` and ``.reachable``;
+* :func:`measures`: ``jacobian(theta, R=R)``'s ``singularity_margin`` and
+  ``dexterity``.
+
+Two kinds of operations are left to numpy because Python's ``math`` module does not
+round them the same way: ``arctan2`` (numpy's vectorised version may differ from the C
+library in the last bit) and the LAPACK factorisations (the singular values and the
+solve of the Jacobian). They are called once per input on tiny arrays. Inputs that
+the float path does not settle (a forward solve that Newton does not certify) take
+the batch path, so every answer is the batch path's answer; ``tests/test_fast_path``
+compares them bit for bit.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+try:  # the gufuncs behind np.linalg.svd and np.linalg.solve, without their wrappers
+    from numpy.linalg import _umath_linalg
+
+    _lapack: Any = _umath_linalg
+except ImportError:  # pragma: no cover
+    _lapack = None
+
+from ..design import SPMDesign
+from ._common import cross
+from ._fk_single import Mat, Vec
+
+__all__ = ["ScalarConstants", "constants", "fk_home", "ik_home", "measures"]
+
+_TWO_PI = 2 * math.pi
+FloatArray = npt.NDArray[np.float64]
+
+
+class ScalarConstants(NamedTuple):
+    """Per-design constants of the float paths (computed with numpy, as the batch
+    code computes them)."""
+
+    design: SPMDesign
+    coaxial: bool
+    v0: Mat
+    u: Mat
+    ik_a: Mat  # a_i = w0_i - (u_i . w0_i) u_i
+    ik_uxw0: Mat  # u_i x w0_i
+    ik_uw0: Vec  # u_i . w0_i
+    cos_a2: float
+    w_along: Mat  # (u_i . w0_i) u_i, as proximal_axes computes it
+    w_rest: Mat  # w0_i - along_i
+    w_cross: Mat  # u_i x w0_i, as proximal_axes computes it
+    turn_axis: Vec  # u_1, the axis of the common turn of coaxial designs
+    turn_outer: Mat  # outer(u_1, u_1)
+
+
+def _vec(values: Sequence[float]) -> Vec:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def _mat(array: FloatArray) -> Mat:
+    rows = array.tolist()
+    return (_vec(rows[0]), _vec(rows[1]), _vec(rows[2]))
+
+
+@functools.lru_cache(maxsize=32)
+def constants(design: SPMDesign) -> ScalarConstants:
+    """The float paths' constants of a design (cached: designs are frozen)."""
+    u, w0 = design.u, design.w0
+    uw0 = np.sum(u * w0, axis=1)
+    along = np.sum(u * w0, axis=-1, keepdims=True) * u
+    axis = design.u[0]
+    return ScalarConstants(
+        design=design,
+        coaxial=bool(design.is_coaxial),
+        v0=_mat(design.v0),
+        u=_mat(u),
+        ik_a=_mat(w0 - uw0[:, None] * u),
+        ik_uxw0=_mat(np.cross(u, w0)),
+        ik_uw0=_vec(uw0.tolist()),
+        cos_a2=float(np.cos(design.alpha2)),
+        w_along=_mat(along),
+        w_rest=_mat(w0 - along),
+        w_cross=_mat(cross(u, w0)),
+        turn_axis=_vec(axis.tolist()),
+        turn_outer=_mat(np.outer(axis, axis)),
+    )
+
+
+def _sum3(a0: float, a1: float, a2: float) -> float:
+    """``np.sum`` of three numbers along an axis (in order)."""
+    return (a0 + a1) + a2
+
+
+def _platform_axes(R: Sequence[Sequence[float]], v0: Mat) -> Mat:
+    """Rows v_i = R v_i0, as ``np.einsum("...jk,ik->...ij", R, v0)`` computes them
+    (its sum of products adds the first and last terms first)."""
+    return tuple(  # type: ignore[return-value]
+        tuple((R[j][0] * v[0] + R[j][2] * v[2]) + R[j][1] * v[1] for j in range(3)) for v in v0
+    )
+
+
+def _wrap(angle: float) -> float:
+    """``np.pi - np.mod(np.pi - angle, 2 pi)`` (Python's % rounds as np.mod does)."""
+    return math.pi - (math.pi - angle) % _TWO_PI
+
+
+# ------------------------------------------------------------------ inverse
+class HomeIK(NamedTuple):
+    """Inverse kinematics of one rotation in the home working mode."""
+
+    theta: Vec  # [rad], NaN on legs that do not close
+    b: Vec  # b_ii (NaN on legs that do not close)
+    leg_reachable: tuple[bool, bool, bool]
+    p: Vec
+    q: Vec
+    s: Vec
+
+
+#: As ``spm_pin.kinematics.ik._REACH_TOL``.
+_REACH_TOL = 1e-12
+
+
+def ik_home(R: Sequence[Sequence[float]], k: ScalarConstants) -> HomeIK:
+    """``inverse_kinematics(R)`` (mode 0, no ``theta_near``) of one checked rotation
+    (rows), bit for bit."""
+    v = _platform_axes(R, k.v0)
+    p = tuple(_sum3(v[i][0] * a[0], v[i][1] * a[1], v[i][2] * a[2]) for i, a in enumerate(k.ik_a))
+    q = tuple(
+        _sum3(v[i][0] * c[0], v[i][1] * c[1], v[i][2] * c[2]) for i, c in enumerate(k.ik_uxw0)
+    )
+    s = tuple(
+        k.ik_uw0[i] * _sum3(v[i][0] * u[0], v[i][1] * u[1], v[i][2] * u[2]) - k.cos_a2
+        for i, u in enumerate(k.u)
+    )
+    ok = []
+    root = []
+    for i in range(3):
+        pp, qq, ss = p[i] * p[i], q[i] * q[i], s[i] * s[i]
+        scale = pp + qq + ss
+        disc = pp + qq - ss
+        good = disc >= -_REACH_TOL * max(scale, 1.0)
+        ok.append(good)
+        root.append(math.sqrt(max(disc, 0.0)) if good else math.nan)
+    angles = np.arctan2([*q, *root], [*p, -s[0], -s[1], -s[2]]).tolist()
+    theta = tuple(_wrap(angles[i] - angles[i + 3]) for i in range(3))
+    return HomeIK(theta, tuple(root), tuple(ok), p, q, s)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ forward
+def fk_home(theta: Sequence[float], k: ScalarConstants) -> Mat | None:
+    """``forward_kinematics(theta)``'s R (rows) of one input (3 finite floats), or
+    None where it is not ``reachable``; bit for bit."""
+    from . import fk as batch
+    from ._fk_single import home_rotation
+
+    t0, t1, t2 = float(theta[0]), float(theta[1]), float(theta[2])
+    if k.coaxial:
+        rep1 = t0 + _wrap(t1 - t0)
+        rep2 = t0 + _wrap(t2 - t0)
+        common = _sum3(t0, rep1, rep2) / 3.0
+        reduced = [t0 - common, rep1 - common, rep2 - common]
+    else:
+        reduced = [t0, t1, t2]
+    single = home_rotation(
+        reduced,
+        batch._single_constants(k.design),
+        batch._NEWTON_STEPS_FAST,
+        batch._POLISH_EXTRA,
+        batch._POLISHED,
+        batch.RESIDUAL_TOL,
+        batch._SIGN_TOL,
+    )
+    if single is None:  # not settled here: the batch path decides
+        fk = batch.forward_kinematics(np.array([t0, t1, t2]), k.design)
+        return _mat(fk.R) if bool(fk.reachable) else None
+    if not k.coaxial:
+        return single
+    c, s = np.cos(common), np.sin(common)  # numpy's, as rotation_about
+    x, y, z = k.turn_axis
+    o = k.turn_outer
+    cross_k = ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
+    one_c = 1.0 - c
+    turn = [
+        [c * (1.0 if i == j else 0.0) + s * cross_k[i][j] + one_c * o[i][j] for j in range(3)]
+        for i in range(3)
+    ]
+    return _mat((np.array(turn)[None] @ np.array(single)[None])[0])
+
+
+# ------------------------------------------------------------------ measures
+def _cross(a: Sequence[float], b: Sequence[float]) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _norm(a: Vec) -> float:
+    return math.sqrt(_sum3(a[0] * a[0], a[1] * a[1], a[2] * a[2]))
+
+
+def proximal_axes_of(theta: Sequence[float], k: ScalarConstants) -> Mat:
+    """Rows w_i(theta_i), as :func:`~spm_pin.kinematics._common.proximal_axes`."""
+    rows = []
+    for i in range(3):
+        c, s = math.cos(theta[i]), math.sin(theta[i])
+        along, rest, cross = k.w_along[i], k.w_rest[i], k.w_cross[i]
+        rows.append(tuple(along[j] + c * rest[j] + s * cross[j] for j in range(3)))
+    return tuple(rows)  # type: ignore[return-value]
+
+
+def measures(
+    theta: Sequence[float], R: Sequence[Sequence[float]], k: ScalarConstants, tol: float
+) -> tuple[float, float]:
+    """``(singularity_margin, dexterity)`` of ``jacobian(theta, R=R, tol=tol)`` at
+    one input with its (reachable) platform rotation, bit for bit."""
+    w = proximal_axes_of(theta, k)
+    v = _platform_axes(R, k.v0)
+    uxw = [_cross(k.u[i], w[i]) for i in range(3)]
+    b = [_sum3(uxw[i][0] * v[i][0], uxw[i][1] * v[i][1], uxw[i][2] * v[i][2]) for i in range(3)]
+    A = [_cross(w[i], v[i]) for i in range(3)]
+    leg_margin = min(abs(b[i]) / _norm(uxw[i]) for i in range(3))
+    unit = []
+    for row in A:
+        n = _norm(row)
+        d = n if n > 0 else 1.0
+        unit.append((row[0] / d, row[1] / d, row[2] / d))
+    a_margin = _singular_values(np.array(unit))[-1]
+    margin = min(leg_margin, a_margin)
+    if leg_margin <= tol or a_margin <= tol:  # type I or II: dexterity 0
+        return margin, 0.0
+    diagonal = [[b[i] * (1.0 if i == j else 0.0) for j in range(3)] for i in range(3)]
+    sigma = _singular_values(_solve(np.array(A), np.array(diagonal)))
+    return margin, (sigma[-1] / sigma[0] if sigma[0] > 0 else 0.0)
+
+
+def _singular_values(matrix: FloatArray) -> list[float]:
+    """Singular values of a 3 x 3 matrix, largest first, as ``np.linalg.svd`` gives
+    them (its LAPACK routine, without the wrapper's checks)."""
+    if _lapack is None:  # pragma: no cover - numpy without the private module
+        values: list[float] = np.linalg.svd(matrix, compute_uv=False).tolist()
+        return values
+    result: list[float] = _lapack.svd(matrix, signature="d->d").tolist()
+    return result
+
+
+def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.linalg.solve(a, b)`` of a regular 3 x 3 system (its LAPACK routine)."""
+    if _lapack is None:  # pragma: no cover - numpy without the private module
+        solved: FloatArray = np.linalg.solve(a, b).astype(np.float64)
+        return solved
+    result: FloatArray = _lapack.solve(a, b, signature="dd->d")
+    return result
