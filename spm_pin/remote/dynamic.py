@@ -38,8 +38,8 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Seconds between goals given to the simulated servos (100 Hz, as the servo loop).
 DEFAULT_PERIOD = 0.01
-#: Most simulation steps taken in one loop cycle: a loop that falls further behind
-#: the wall clock lets simulated time run slower instead of trying to catch up.
+#: Most simulation steps taken in one loop cycle (whole periods): a loop that falls
+#: further behind the wall clock lets simulated time run slower instead of catching up.
 MAX_STEPS_PER_CYCLE = 100
 
 
@@ -112,9 +112,12 @@ class DynamicBackend(MotionTwin):
             integrator=integrator,
             state=start,
         )
-        if self.period < self.simulator.dt:
+        self._steps_per_period = round(self.period / self.simulator.dt)
+        if self._steps_per_period < 1 or not math.isclose(
+            self._steps_per_period * self.simulator.dt, self.period, rel_tol=1e-9
+        ):
             raise InputError(
-                f"period ({period} s) must be at least the time step dt ({dt} s)",
+                f"period ({period} s) must be a whole number of time steps dt ({dt} s)",
                 argument="period",
                 value=period,
             )
@@ -126,20 +129,40 @@ class DynamicBackend(MotionTwin):
         self._goal = start.copy()
         self._start_loop()
 
-    def _advance(self, goal: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def _cycle(self) -> None:
+        """Advance the simulation to the wall clock, one goal per simulated period.
+
+        The goals of a path are given to the servos by simulated time, not by loop
+        cycles: a loop that runs late and catches up still hands each goal to the
+        servos for one whole period of simulated time (handing them over per cycle
+        would run the goals ahead of the robot, and the servos would race after them).
+        """
         sim = self.simulator
         now = time.perf_counter()
         if self._epoch is None:
             self._epoch = now - sim.time
+        periods = math.floor((now - self._epoch - sim.time) / self.period + 1e-9)
+        limit = max(1, MAX_STEPS_PER_CYCLE // self._steps_per_period)
+        if periods > limit:  # too far behind: simulated time runs slower instead
+            self.slow_cycles += 1
+            self._epoch += (periods - limit) * self.period
+            periods = limit
+        for _ in range(max(periods, 0)):
+            with self._motion:
+                if self._path:
+                    self._goal = self._path.popleft()
+                goal = self._goal
+            theta, theta_dot = self._advance(goal)
+            with self._motion:
+                self._theta, self._theta_dot = theta, theta_dot
+
+    def _advance(self, goal: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """One period of simulated time with the servos holding ``goal``."""
+        sim = self.simulator
         if not np.array_equal(goal, self._controller_goal):
             self._controller = ServoController(self.servo, goal)
             self._controller_goal = goal.copy()
-        steps = math.floor((now - self._epoch - sim.time) / sim.dt + 1e-9)
-        if steps > MAX_STEPS_PER_CYCLE:
-            self.slow_cycles += 1
-            self._epoch += (steps - MAX_STEPS_PER_CYCLE) * sim.dt
-            steps = MAX_STEPS_PER_CYCLE
         controller = self._controller
-        for _ in range(max(steps, 0)):
+        for _ in range(self._steps_per_period):
             sim.step(controller(sim.time, sim.theta, sim.theta_dot))
         return sim.theta, sim.theta_dot
