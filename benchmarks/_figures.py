@@ -508,6 +508,46 @@ def figures_remote(data: Mapping[str, Any]) -> list[Figure]:
     return rows
 
 
+def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
+    """Env steps of spm_pin/Orient-v0; the peer is SyncVectorEnv over single envs."""
+    results, peer = data["results"], data["peer"]
+    vector = results["vector"]
+    return [
+        timed(
+            "vector_step",
+            f"envs: Orient-v0 batched step, per env step (N = {vector['n']:,})",
+            vector,
+            per_item=True,
+            peer_name=f"SyncVectorEnv, N = {peer['n']}",
+            peer=peer,
+            ratio=peer["speed_ratio_ours_vs_peer"],
+            targets=("vector_steps_per_second",),
+        ),
+        timed("single_step", "envs: Orient-v0 single env step", results["single"]),
+    ]
+
+
+def figures_optimize(data: Mapping[str, Any]) -> list[Figure]:
+    """One score of the safe orientation workspace; the peer is the workspace map."""
+    results, peer = data["results"], data["peer"]
+    return [
+        timed(
+            "score",
+            "optimize: safe workspace score at 2 deg (prototype)",
+            results["score"],
+            peer_name="workspace_map, no clearance",
+            peer=peer,
+            ratio=peer["speed_ratio_ours_vs_peer"],
+            targets=("score_2deg_s", "equal_to_map"),
+        ),
+        timed(
+            "score_new_design",
+            "optimize: safe workspace score of a new design (collision model built)",
+            results["score_new_design"],
+        ),
+    ]
+
+
 @dataclasses.dataclass(frozen=True)
 class Benchmark:
     """One benchmark of the suite.
@@ -569,6 +609,11 @@ BENCHMARKS: dict[str, Benchmark] = {
             "the same queries through the Python API in the same process "
             "(backend.state(), backend.command(): a goal through the guard)",
             figures_remote,
+        ),
+        Benchmark(
+            "envs",
+            "gymnasium.vector.SyncVectorEnv over single OrientEnv objects (N Python environments)",
+            figures_envs,
         ),
     )
 }

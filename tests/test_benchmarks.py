@@ -169,6 +169,46 @@ def test_quick_calibration_benchmark(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert set(data["targets"]) == {"identification_seconds", "parameters_identified", "all_pass"}
 
 
+def test_quick_envs_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("gymnasium")
+    from benchmarks import bench_envs
+
+    out = tmp_path / "envs.json"
+    assert bench_envs.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "envs" and data["config"]["quick"] is True
+    assert set(data["results"]) == {"vector", "single"}
+    for entry in (data["results"]["vector"], data["results"]["single"], data["peer"]):
+        assert set(entry) >= TIMING_KEYS - {"n"}
+        assert entry["p95_s"] >= entry["median_s"] > 0
+    assert data["results"]["vector"]["items"] == data["results"]["vector"]["n"] == 256
+    assert data["peer"]["speed_ratio_ours_vs_peer"] > 0
+    assert set(data["targets"]) == {"all_pass"}  # the 4096 target: full runs only
+
+
+def test_quick_optimize_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchmarks import bench_optimize
+
+    out = tmp_path / "optimize.json"
+    assert bench_optimize.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "optimize" and data["config"]["quick"] is True
+    assert set(data["results"]) == {"score", "score_new_design"}
+    entries = (data["results"]["score"], data["results"]["score_new_design"], data["peer"])
+    for entry in (*entries, data["peer_clearance"]):
+        assert set(entry) >= TIMING_KEYS - {"n"}
+        assert entry["p95_s"] >= entry["median_s"] > 0
+    score = data["results"]["score"]
+    assert score["points"] == 16471 and 0 < score["collision_checks"] < score["points"]
+    for peer in (data["peer"], data["peer_clearance"]):
+        assert peer["safe_equal"] is True and peer["figures"] == score["figures"]
+    assert data["peer"]["speed_ratio_ours_vs_peer"] > 0
+    assert set(data["targets"]) == {"equal_to_map", "all_pass"}  # time: full runs only
+    assert data["targets"]["equal_to_map"]["pass"] is True
+
+
 def test_quick_closure_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from benchmarks import bench_closure
 
@@ -371,7 +411,12 @@ def test_gathered_suite_quick(tmp_path: Path) -> None:
     assert info["suite"] == "spm-pin benchmarks" and info["quick"] == 1 and info["complete"] == 1
     assert {"cpu_count", "python", "version.numpy", "load_avg_end"} <= set(info)
     assert info["benchmarks"].split() == list(_figures.BENCHMARKS)
-    optional = {"dynamics": "mujoco", "hardware": "dynamixel_sdk", "remote": "fastapi"}
+    optional = {
+        "dynamics": "mujoco",
+        "hardware": "dynamixel_sdk",
+        "remote": "fastapi",
+        "envs": "gymnasium",
+    }
     expected_rows = []
     for name in _figures.BENCHMARKS:
         status = info[f"status.{name}"]

@@ -17,7 +17,7 @@ from ..design import SPMDesign
 from ..errors import FileFormatError, InputError
 from .settings import WorkspaceSettings
 
-__all__ = ["BINARY_PANELS", "GAP_PANELS", "MAP_FIELDS", "WorkspaceMap"]
+__all__ = ["BINARY_PANELS", "GAP_PANELS", "MAP_FIELDS", "WorkspaceMap", "safe_tilt_figures"]
 
 IntArray = npt.NDArray[np.int64]
 
@@ -58,6 +58,40 @@ BINARY_PANELS: dict[str, tuple[tuple[str, str], tuple[str, str]]] = {
     "collision": (("no collision", "0.88"), ("links collide", "tab:red")),
     "safe": (("not safe", "0.88"), ("safe", "tab:blue")),
 }
+
+
+#: Sectors of azimuth - torsion [deg] over which the safe tilt in every direction is
+#: taken (the smallest of the sectors' largest safe tilts).
+TILT_SECTOR_DEG = 5.0
+
+
+def safe_tilt_figures(
+    safe: BoolArray, tilt_deg: FloatArray, psi_deg: FloatArray
+) -> tuple[float | None, float | None]:
+    """The largest safe tilt and the safe tilt in every direction [deg] of a map.
+
+    Args:
+        safe: Per point, whether it is safe.
+        tilt_deg: Tilt of the platform per point [deg].
+        psi_deg: Azimuth minus torsion per point [deg]: the direction of the tilt in
+            the platform frame, free of the common yaw of the inputs.
+
+    Returns:
+        The largest tilt over the safe points (None if none is safe), and the
+        smallest over the 5-degree sectors of psi of the largest safe tilt in the
+        sector (None if a sector holds no safe point).
+    """
+    count = round(360.0 / TILT_SECTOR_DEG)
+    sectors = np.full(count, np.nan)
+    if np.any(safe):
+        bins = np.floor(np.mod(psi_deg[safe], 360.0) / TILT_SECTOR_DEG).astype(int) % count
+        for k in range(count):
+            inside = tilt_deg[safe][bins == k]
+            if inside.size:
+                sectors[k] = float(inside.max())
+    largest = float(np.max(tilt_deg[safe])) if np.any(safe) else None
+    every = float(np.min(sectors)) if np.all(np.isfinite(sectors)) else None
+    return largest, every
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,15 +164,9 @@ class WorkspaceMap:
         n = max(len(self), 1)
         reachable = f["reachable"]
         safe = f["safe"]
-        tilt = f["tilt_deg"]
-        psi = f["azimuth_deg"] - f["torsion_deg"]
-        sectors = np.full(72, np.nan)
-        if np.any(safe):
-            bins = np.floor(np.mod(psi[safe], 360.0) / 5.0).astype(int) % 72
-            for k in range(72):
-                inside = tilt[safe][bins == k]
-                if inside.size:
-                    sectors[k] = float(inside.max())
+        largest_tilt, every_direction = safe_tilt_figures(
+            safe, f["tilt_deg"], f["azimuth_deg"] - f["torsion_deg"]
+        )
         counts = {}
         from ..collision import LINK_PAIRS
 
@@ -156,10 +184,8 @@ class WorkspaceMap:
             "type_i_points": int(np.count_nonzero(f["type_i"])),
             "type_ii_points": int(np.count_nonzero(f["type_ii"])),
             "max_dexterity": float(np.nanmax(f["dexterity"])) if np.any(reachable) else None,
-            "max_safe_tilt_deg": float(np.max(tilt[safe])) if np.any(safe) else None,
-            "safe_tilt_every_direction_deg": (
-                float(np.min(sectors)) if np.all(np.isfinite(sectors)) else None
-            ),
+            "max_safe_tilt_deg": largest_tilt,
+            "safe_tilt_every_direction_deg": every_direction,
             "colliding_points_by_pair": counts,
             "margin_m": self.settings.margin,
             "min_dexterity": self.settings.min_dexterity,

@@ -1,0 +1,263 @@
+"""The batched kinematic core that both orientation environments step.
+
+One :class:`OrientCore` holds N robots as arrays: input angles theta (N, 3) [rad],
+commanded speeds (N, 3) [rad/s], platform rotations (N, 3, 3), goals (N, 3, 3), the
+counters of each episode. The single environment is a core of one robot, the vector
+environment a core of N, so both run the same arithmetic. Each robot draws its
+episodes (start, goal, observation noise) from its own random generator, in the same
+order in both.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InputError
+from ..kinematics import forward_kinematics
+from ..planning import SafeSet, safe_set_of
+from .settings import OrientSettings
+
+__all__ = ["OBSERVATION_SIZE", "OrientCore", "StepResult", "geodesic_angle"]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.intp]
+
+#: Platform rotation (6), goal (6), sin and cos of the inputs (6), speeds (3).
+OBSERVATION_SIZE = 21
+#: Observed entries that carry noise: all but the goal's six.
+_NOISY = np.r_[0:6, 12:21]
+
+
+def geodesic_angle(R: FloatArray, G: FloatArray) -> FloatArray:
+    """The angle [rad] of the rotation between R and G, (..., 3, 3) each:
+    2 arcsin(|R - G|_F / sqrt(8)) (well conditioned near 0, unlike the arccos of the
+    trace)."""
+    norm = np.sqrt(np.sum((R - G) ** 2, axis=(-2, -1)))
+    angle: FloatArray = 2.0 * np.arcsin(np.minimum(norm / math.sqrt(8.0), 1.0))
+    return angle
+
+
+def six_d(R: FloatArray) -> FloatArray:
+    """The continuous 6-D form of rotations (..., 3, 3): the first two columns,
+    column after column, (..., 6)."""
+    cols: FloatArray = np.concatenate([R[..., :, 0], R[..., :, 1]], axis=-1)
+    return cols
+
+
+@dataclasses.dataclass(frozen=True)
+class StepResult:
+    """What one step of the rows that stepped gives.
+
+    Attributes:
+        reward: (n,).
+        terminated: (n,) at the goal for ``hold_steps``, or stopped by an unsafe step.
+        truncated: (n,) ``max_steps`` reached.
+        error: (n,) orientation error after the step [rad].
+        fraction: (n,) fraction of the commanded step that was taken.
+        success: (n,) the goal was held.
+        unsafe: (n,) an unsafe step ended the episode.
+    """
+
+    reward: FloatArray
+    terminated: BoolArray
+    truncated: BoolArray
+    error: FloatArray
+    fraction: FloatArray
+    success: BoolArray
+    unsafe: BoolArray
+
+
+class OrientCore:
+    """N kinematic robots stepped as numpy batches (see the module).
+
+    Args:
+        settings: The options.
+        num: Number of robots.
+    """
+
+    def __init__(self, settings: OrientSettings, num: int) -> None:
+        self.settings = settings
+        self.design = settings.the_design
+        self.limits = settings.the_limits
+        self.safe_set: SafeSet = safe_set_of(self.design, settings.plan_settings)
+        index = np.argwhere(self.safe_set.safe)
+        #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
+        self.vertices: FloatArray = np.stack(
+            [self.safe_set.d12[index[:, 0]], self.safe_set.d23[index[:, 1]]], axis=-1
+        )
+        if self.vertices.shape[0] == 0:
+            raise InputError(
+                f"design {self.design.name!r} has no safe state with these limits",
+                argument="limits",
+                value=self.limits,
+            )
+        #: The diagonal of the safe vertices' bounding box [deg] (the curriculum's scale).
+        self.max_gap_distance = float(np.hypot(*np.ptp(self.vertices, axis=0)))
+        self.num = num
+        self.level = settings.curriculum_level
+        self.theta = np.zeros((num, 3))
+        self.speed = np.zeros((num, 3))
+        self.R = np.tile(np.eye(3), (num, 1, 1))
+        self.goal = np.tile(np.eye(3), (num, 1, 1))
+        self.goal_theta = np.zeros((num, 3))
+        self.hold = np.zeros(num, dtype=np.intp)
+        self.steps = np.zeros(num, dtype=np.intp)
+        fixed = np.asarray(settings.goal_theta, dtype=float)
+        self._fixed_goal = fixed
+        if settings.goal == "fixed":
+            verdict = self.safe_set.evaluate(fixed[None])
+            if not verdict.safe[0]:
+                raise InputError(
+                    f"goal_theta {np.degrees(fixed).round(3).tolist()} deg is not safe: "
+                    + verdict.reason(0, self.safe_set.settings),
+                    argument="goal_theta",
+                    value=settings.goal_theta,
+                )
+
+    # ---------------------------------------------------------------- episodes
+    def _draw(self, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
+        """(start, goal input angles) of one episode, drawn from ``rng``."""
+        s = self.settings
+        vertices = self.vertices
+        if s.start == "home":
+            start = np.zeros(3)
+        else:
+            k = int(rng.integers(vertices.shape[0]))
+            start = self.safe_set.theta_of(
+                vertices[k, 0], vertices[k, 1], rng.uniform(-math.pi, math.pi)
+            )
+        if s.goal == "fixed":
+            return start, self._fixed_goal.copy()
+        d12, d23, yaw = self.safe_set.gaps_of(start)
+        if s.goal == "curriculum":
+            distance = np.hypot(vertices[:, 0] - d12, vertices[:, 1] - d23)
+            near = np.flatnonzero(distance <= self.level * self.max_gap_distance + 1e-9)
+            if near.size == 0:  # the start lies off the grid: its nearest vertex
+                near = np.array([int(np.argmin(distance))])
+            k = int(near[rng.integers(near.size)])
+            turn = self.level * rng.uniform(-math.pi, math.pi)
+            goal = self.safe_set.theta_of(vertices[k, 0], vertices[k, 1], float(yaw) + turn)
+        else:
+            k = int(rng.integers(vertices.shape[0]))
+            goal = self.safe_set.theta_of(
+                vertices[k, 0], vertices[k, 1], rng.uniform(-math.pi, math.pi)
+            )
+        return start, goal
+
+    def reset_rows(self, rows: IntArray, rngs: list[np.random.Generator]) -> None:
+        """Start a new episode in each of ``rows``, drawn from its own generator."""
+        if rows.size == 0:
+            return
+        drawn = [self._draw(rngs[int(i)]) for i in rows]
+        start = np.stack([a for a, _ in drawn])
+        goal = np.stack([b for _, b in drawn])
+        both = forward_kinematics(np.concatenate([start, goal]), self.design)
+        n = rows.size
+        self.theta[rows] = start
+        self.speed[rows] = 0.0
+        self.R[rows] = both.R[:n]
+        self.goal[rows] = both.R[n:]
+        self.goal_theta[rows] = goal
+        self.hold[rows] = 0
+        self.steps[rows] = 0
+
+    # ---------------------------------------------------------------- safety
+    def safe(self, theta: FloatArray) -> BoolArray:
+        """The guard's static checks at input angles (n, 3): joint limits, then the
+        safe set's checks (home assembly, singularity margin, dexterity, clearance)."""
+        low = np.asarray(self.limits.theta_min)
+        high = np.asarray(self.limits.theta_max)
+        ok = np.all((theta >= low) & (theta <= high), axis=-1)
+        result = np.zeros(theta.shape[0], dtype=bool)
+        if np.any(ok):
+            result[ok] = self.safe_set.evaluate(theta[ok]).safe
+        return result
+
+    def _furthest_safe(self, theta: FloatArray, step: FloatArray) -> FloatArray:
+        """Largest fraction s (bisection) with theta + s step safe, (n,); 0 when
+        even the shortest tried step is unsafe."""
+        low = np.zeros(theta.shape[0])
+        high = np.ones(theta.shape[0])
+        for _ in range(self.settings.clip_iterations):
+            middle = 0.5 * (low + high)
+            ok = self.safe(theta + middle[:, None] * step)
+            low = np.where(ok, middle, low)
+            high = np.where(ok, high, middle)
+        return low
+
+    # ---------------------------------------------------------------- stepping
+    def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """Step ``rows`` with normalised actions (n, 3) in [-1, 1]."""
+        s = self.settings
+        w = s.weights
+        dt = s.control_period
+        vmax = self.limits.max_speed
+        a = np.clip(action, -1.0, 1.0)
+        command = a * vmax
+        speed = self.speed[rows]
+        if s.limit_acceleration:
+            dv = self.limits.max_acceleration * dt
+            command = np.clip(command, speed - dv, speed + dv)
+        theta = self.theta[rows]
+        step = command * dt
+        ok = self.safe(theta + step)
+        fraction = ok.astype(float)
+        unsafe = np.zeros(rows.size, dtype=bool)
+        bad = np.flatnonzero(~ok)
+        if bad.size:
+            if s.safety == "clip":
+                fraction[bad] = self._furthest_safe(theta[bad], step[bad])
+            else:
+                unsafe[bad] = True
+        new_theta = theta + fraction[:, None] * step
+        new_speed = fraction[:, None] * command
+        fk = forward_kinematics(new_theta, self.design)
+        R = np.where(fk.reachable[:, None, None], fk.R, self.R[rows])
+        error = geodesic_angle(R, self.goal[rows])
+        hold = np.where(error <= s.tolerance, self.hold[rows] + 1, 0)
+        success = hold >= s.hold_steps
+        steps = self.steps[rows] + 1
+        terminated = success | unsafe
+        truncated = (steps >= s.max_steps) & ~terminated
+        reward = (
+            -w.orientation * error
+            - w.effort * np.mean(a**2, axis=-1)
+            - w.clip * (1.0 - fraction) * (~unsafe)
+            + w.success * success
+            - w.unsafe * unsafe
+        )
+        self.theta[rows] = new_theta
+        self.speed[rows] = new_speed
+        self.R[rows] = R
+        self.hold[rows] = hold
+        self.steps[rows] = steps
+        return StepResult(reward, terminated, truncated, error, fraction, success, unsafe)
+
+    def error(self, rows: IntArray) -> FloatArray:
+        """Orientation error of ``rows`` [rad]."""
+        return geodesic_angle(self.R[rows], self.goal[rows])
+
+    def observe(self, rows: IntArray, rngs: list[np.random.Generator]) -> npt.NDArray[np.float32]:
+        """Observations of ``rows`` (n, 21), float32, with noise drawn from each row's
+        own generator when ``observation_noise`` > 0."""
+        theta = self.theta[rows]
+        obs = np.concatenate(
+            [
+                six_d(self.R[rows]),
+                six_d(self.goal[rows]),
+                np.sin(theta),
+                np.cos(theta),
+                self.speed[rows] / self.limits.max_speed,
+            ],
+            axis=-1,
+        )
+        sigma = self.settings.observation_noise
+        if sigma > 0.0:
+            noise = np.stack([rngs[int(i)].normal(0.0, sigma, _NOISY.size) for i in rows])
+            obs[:, _NOISY] = np.clip(obs[:, _NOISY] + noise, -1.0, 1.0)
+        return obs.astype(np.float32)
