@@ -33,7 +33,7 @@ from ..errors import InputError, UnsafeCommandError
 from ..hardware.config import SafetyLimits
 from ..hardware.sync import plan_linear
 from ..model.robot import SPMRobot
-from .backend import CheckOutcome, GuardedTwin, TwinState, _theta
+from .backend import CheckOutcome, GuardedTwin, TwinState, _goal_arguments
 
 __all__ = ["PATH_CHECK", "MotionTwin"]
 
@@ -270,9 +270,7 @@ class MotionTwin(GuardedTwin):
                 check names the sample); nothing changes.
             UnsafeCommandError: the twin stopped after a fault; it takes no goals.
         """
-        goal = _theta(theta)
-        before = None if before_previous is None else _theta(before_previous)
-        last = None if previous is None else _theta(previous)
+        goal, last, before = _goal_arguments(theta, previous, before_previous)
         if self.fault is not None:
             raise UnsafeCommandError(
                 f"the {self.name} twin stopped after a fault and takes no goals: {self.fault}",

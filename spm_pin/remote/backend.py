@@ -301,6 +301,23 @@ def _theta(theta: npt.ArrayLike) -> FloatArray:
     return values
 
 
+def _goal_arguments(
+    theta: npt.ArrayLike,
+    previous: npt.ArrayLike | None,
+    before_previous: npt.ArrayLike | None,
+) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+    """A goal and the two goals before it (streams), each checked: (goal, previous,
+    before_previous) [rad].
+
+    Raises:
+        InputError: one of them is not 3 finite numbers.
+    """
+    goal = _theta(theta)
+    last = None if previous is None else _theta(previous)
+    before = None if before_previous is None else _theta(before_previous)
+    return goal, last, before
+
+
 def _check_of(reason: str) -> str:
     """The check a reason of the guard belongs to (``"other"`` if none)."""
     for words, name in _REASON_WORDS:
@@ -607,17 +624,6 @@ class KinematicBackend(GuardedTwin):
             theta: FloatArray = self._theta.copy()
         return theta
 
-    @staticmethod
-    def _goals(
-        theta: npt.ArrayLike,
-        previous: npt.ArrayLike | None,
-        before_previous: npt.ArrayLike | None,
-    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
-        goal = _theta(theta)
-        before = None if before_previous is None else _theta(before_previous)
-        last = None if previous is None else _theta(previous)
-        return goal, last, before
-
     def command(
         self,
         theta: npt.ArrayLike,
@@ -640,7 +646,7 @@ class KinematicBackend(GuardedTwin):
         before_previous: npt.ArrayLike | None,
         period: float | None,
     ) -> FloatArray:
-        goal, last, before = self._goals(theta, previous, before_previous)
+        goal, last, before = _goal_arguments(theta, previous, before_previous)
         with self._lock:
             self._accept(goal, last, before, period)
             self._theta = goal
