@@ -458,9 +458,10 @@ class SPMDesign:
         array.setflags(write=False)
         return array
 
-    @property
+    @cached_property
     def is_coaxial(self) -> bool:
-        """True when the three base axes coincide (the platform can spin endlessly)."""
+        """True when the three base axes coincide (the platform can spin endlessly;
+        computed once per design)."""
         return bool(np.allclose(self.u, self.u[0], atol=1e-12))
 
     @cached_property
