@@ -655,6 +655,30 @@ def test_json_has_no_nan(client: httpx.Client) -> None:
     )
 
 
+def test_streamed_goals_recompute_the_distance_at_most_every_interval(
+    robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """While goals stream in, the exact distance is reused for DISTANCE_INTERVAL
+    seconds (reads stay cheap); after the interval, or after move(), it is exact."""
+    from spm_pin.collision import check_input
+    from spm_pin.remote import backend
+
+    twin = KinematicBackend(robot=robot)
+    path = np.radians([[1.0, 0.5, -0.2], [6.0, 3.0, -1.2], [12.0, 6.0, -2.4]])
+    monkeypatch.setattr(backend, "DISTANCE_INTERVAL", 60.0)  # well within it
+    twin.command(path[0])
+    first = twin.state().min_distance
+    assert first == check_input(path[0], robot).min_distance
+    twin.command(path[1])
+    assert twin.state().min_distance == first  # within the interval: the last one
+    monkeypatch.setattr(backend, "DISTANCE_INTERVAL", 0.0)  # past it
+    twin.command(path[2])
+    assert twin.state().min_distance == check_input(path[2], robot).min_distance
+    twin.command(path[1])
+    moved = twin.move(path[0])  # an HTTP goal: exact at once
+    assert moved.min_distance == check_input(path[0], robot).min_distance
+
+
 def test_state_after_goals_is_exact(robot: spm.SPMRobot) -> None:
     """The state read after goals (streamed without reading it back, or moved to) has
     the exact smallest distance that the full collision report computes, though the

@@ -64,6 +64,10 @@ CHECK_NAMES = ("joint_limits", "reachable", "singularity", "dexterity", "collisi
 #: only when they were evaluated, i.e. with a period).
 RATE_CHECK_NAMES = ("speed", "acceleration")
 
+#: While goals stream in (``command``), the kinematic twin's exact smallest link
+#: distance is computed again at most this often [s] (it costs ~15 ms).
+DISTANCE_INTERVAL = 0.1
+
 #: Words of the guard's reasons -> the check they belong to (first match wins).
 _REASON_WORDS = (
     ("joint speed", "speed"),
@@ -526,7 +530,10 @@ class KinematicBackend(GuardedTwin):
     until the next goal: a stream of goals (:meth:`command`) pays for the guard's
     checks only, and the exact smallest link distance (``min_distance``, the costly
     part) is computed with the distance of the nearest pair of the previous state
-    as a cap, which prunes the other pairs early and gives the same minimum.
+    as a cap, which prunes the other pairs early and gives the same minimum. While
+    goals stream in, it is computed again at most every :data:`DISTANCE_INTERVAL`
+    seconds (in between, a read gives the last one computed); after :meth:`move` it
+    is always exact.
 
     Args:
         design: The SPM (default: the prototype); ignored when ``robot`` is given.
@@ -563,6 +570,8 @@ class KinematicBackend(GuardedTwin):
         # a goal) and the link pair nearest at the last read, whose distance caps
         # the search of the next minimum.
         self._distance_lock = threading.Lock()
+        self._streaming = False  # the last goal came by command() (a stream)
+        self._last_distance: tuple[float, float] | None = None  # (monotonic time, m)
         self._distance_robot: SPMRobot | None = None
         self._nearest: LinkPair | None = None
 
@@ -611,7 +620,13 @@ class KinematicBackend(GuardedTwin):
         with self._lock:
             if self._state is not None and self._theta is theta:
                 return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
-        min_distance = self._min_distance(theta)
+        now = time.monotonic()
+        recent = self._last_distance
+        if self._streaming and recent is not None and now - recent[0] < DISTANCE_INTERVAL:
+            min_distance = recent[1]  # goals streaming in: at most DISTANCE_INTERVAL old
+        else:
+            min_distance = self._min_distance(theta)
+            self._last_distance = (time.monotonic(), min_distance)  # its age counts from now
         with self._lock:
             state = self._compute_state(theta, min_distance)
             if self._theta is theta:
@@ -637,7 +652,7 @@ class KinematicBackend(GuardedTwin):
 
         Arguments and errors as :meth:`move`.
         """
-        self._command(theta, previous, before_previous, period)
+        self._command(theta, previous, before_previous, period, streamed=True)
 
     def _command(
         self,
@@ -645,12 +660,15 @@ class KinematicBackend(GuardedTwin):
         previous: npt.ArrayLike | None,
         before_previous: npt.ArrayLike | None,
         period: float | None,
+        *,
+        streamed: bool = False,
     ) -> FloatArray:
         goal, last, before = _goal_arguments(theta, previous, before_previous)
         with self._lock:
             self._accept(goal, last, before, period)
             self._theta = goal
             self._state = None
+            self._streaming = streamed
         return goal
 
     def move(
