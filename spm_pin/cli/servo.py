@@ -534,7 +534,8 @@ def add_servo_parser(commands: Any) -> None:
         "--mode",
         choices=("slide", "stop"),
         default="slide",
-        help="what an unsafe target does: slide along the boundary, or stop (hold)",
+        help="what an unsafe target does: slide (as far towards it as is safe, up to the "
+        "boundary of the safe set) or stop (hold the last safe goal)",
     )
     stream.add_argument("--rate", type=_positive, metavar="HZ", help="loop rate [Hz]")
     _add_bus_options(stream)

@@ -12,7 +12,8 @@
   guard), and the step towards it checked as a continuous motion in the certified
   safe set before the sync loop's guard checks it again; an unsafe target never
   reaches the bus. With ``mode="slide"`` (default) the goal goes as far towards the
-  target as is safe (it slides along the boundary of the safe set); with
+  target as is safe, up to the boundary of the safe set (it does not yet slide along
+  the boundary: a target beyond it stops the goal there); with
   ``mode="stop"`` it holds the last safe goal. Every step says what it did and why.
 """
 
