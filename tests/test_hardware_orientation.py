@@ -176,3 +176,22 @@ def test_spm_servo_stream_file(
     assert main(["servo", "stream", str(bad), "--config", str(config_file)]) == 2
     err = capsys.readouterr().err
     assert "line 1: expected 'roll pitch yaw'" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    ("path", "kwargs", "argument"),
+    [
+        ([[0.0, 0.0, 0.0], [0.1, np.nan, 0.0]], {}, "path"),
+        ([[0.0, 0.0]], {}, "path"),
+        ([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]], {"max_speed": 0.0}, "max_speed"),
+        ([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]], {"period": -0.01}, "period"),
+    ],
+)
+def test_planned_goals_refuse_bad_input(
+    path: object, kwargs: dict[str, float], argument: str
+) -> None:
+    from spm_pin.errors import InputError
+
+    limits = {"max_speed": 1.0, "max_acceleration": 1.0, "period": 0.01, **kwargs}
+    with pytest.raises(InputError, match=argument):
+        planned_goals(path, **limits)  # type: ignore[arg-type]

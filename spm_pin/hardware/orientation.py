@@ -3,8 +3,8 @@
 * :func:`planned_goals` / :func:`move_planned`: a move to input angles or an
   orientation along a path of :func:`spm_pin.planning.plan` (safe along the whole
   motion; round the unsafe parts of the workspace instead of refusing), sampled one
-  goal per loop period, each straight piece from rest to rest on a trapezoidal
-  profile at the guard's speed and acceleration limits, then sent by
+  goal per loop period, each straight piece from rest to rest on the sync loop's
+  trapezoid (``plan_linear``) at the guard's limits, then sent by
   :meth:`~spm_pin.hardware.sync.ServoSync.run` (which checks the goals whole again).
 * :class:`OrientationStream`: orientation targets arriving at a rate (a head tracker,
   a joystick, a file). Each target is solved (home working mode, the turn about the
@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from ..errors import InputError, UnreachableError
 from ..kinematics import inverse_kinematics
-from .sync import MoveResult, ServoSync, StepResult
+from .sync import MoveResult, ServoSync, StepResult, plan_linear
 
 if TYPE_CHECKING:
     from ..planning import PlannedPath, SafeSet
@@ -64,53 +64,35 @@ def _safe_set(sync: ServoSync, safe: SafeSet | None) -> SafeSet:
     return safe_set_of(sync.design, settings)
 
 
-def _segment_goals(a0: FloatArray, a1: FloatArray, v: float, a: float, period: float) -> FloatArray:
-    """A straight piece from rest to rest, one goal per period: a trapezoidal profile
-    of the largest joint motion, slowed down to end exactly on a period (every sample
-    then falls on the profile, and its second differences stay within ``a``)."""
-    distance = float(np.max(np.abs(a1 - a0)))
-    if distance == 0.0:
-        still: FloatArray = a1[None].copy()
-        return still
-    if distance >= v * v / a:
-        t_acc = v / a
-        duration = distance / v + t_acc
-    else:
-        t_acc = math.sqrt(distance / a)
-        v = a * t_acc
-        duration = 2.0 * t_acc
-    n = max(1, math.ceil(duration / period - 1e-9))
-    f = n * period / duration
-    v, a, t_acc, duration = v / f, a / f**2, t_acc * f, n * period
-    t = np.arange(1, n + 1) * period
-    s = np.where(
-        t < t_acc,
-        0.5 * a * t**2,
-        np.where(
-            t <= duration - t_acc,
-            0.5 * a * t_acc**2 + v * (t - t_acc),
-            distance - 0.5 * a * (duration - t) ** 2,
-        ),
-    )
-    fraction = np.clip(s / distance, 0.0, 1.0)
-    fraction[-1] = 1.0
-    goals: FloatArray = a0 + fraction[:, None] * (a1 - a0)
-    return goals
-
-
 def planned_goals(
     path: FloatArray, *, max_speed: float, max_acceleration: float, period: float
 ) -> FloatArray:
     """A polyline of input angles (n, 3) [rad] sampled one goal per ``period`` [s]:
-    each straight piece from rest to rest on a trapezoidal profile (a corner cannot
-    be passed at speed without a jump of the joint speeds), no joint faster than
-    ``max_speed`` [rad/s] nor accelerating more than ``max_acceleration``
-    [rad/s^2]. The last goal is the polyline's end exactly."""
-    theta = np.asarray(path, dtype=float)
-    if theta.ndim != 2 or theta.shape[1] != 3 or theta.shape[0] < 1:
-        raise InputError(f"path must have shape (n, 3), got {theta.shape}", argument="path")
+    each straight piece from rest to rest (a corner cannot be passed at speed without
+    a jump of the joint speeds) on :func:`~spm_pin.hardware.sync.plan_linear`'s
+    trapezoid, no joint faster than ``max_speed`` [rad/s] nor accelerating more than
+    ``max_acceleration`` [rad/s^2]. The last goal is the polyline's end exactly.
+
+    Raises:
+        InputError: a path that is not (n, 3) finite angles, or limits or a period
+            that are not positive (checked by ``plan_linear``).
+    """
+    try:
+        theta = np.array(path, dtype=float)
+    except (TypeError, ValueError):
+        theta = np.empty(0)
+    if theta.ndim != 2 or theta.shape[1:] != (3,) or theta.shape[0] < 1:
+        raise InputError(f"path must have shape (n, 3), got {np.shape(path)}", argument="path")
+    if not np.all(np.isfinite(theta)):
+        raise InputError("path must hold finite angles [rad]", argument="path")
     pieces = [
-        _segment_goals(theta[k], theta[k + 1], max_speed, max_acceleration, period)
+        plan_linear(
+            theta[k],
+            theta[k + 1],
+            max_speed=max_speed,
+            max_acceleration=max_acceleration,
+            period=period,
+        )
         for k in range(theta.shape[0] - 1)
     ]
     if not pieces:
