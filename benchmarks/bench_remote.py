@@ -261,15 +261,23 @@ async def _control(
 
 
 def bench_stream(
-    base: str, ws_url: str, rate: float, seconds: float, readers: int, start_deg: Any
+    base: str,
+    ws_url: str,
+    rate: float,
+    seconds: float,
+    readers: int,
+    start_deg: Any,
+    reader_rate: float | None = None,
 ) -> dict[str, Any]:
-    """One controlling client at ``rate`` with ``readers`` readers at the same rate."""
+    """One controlling client at ``rate`` with ``readers`` readers at ``reader_rate``
+    (default: the same rate)."""
     ctx = multiprocessing.get_context("spawn")
     ready, stop = ctx.Event(), ctx.Event()
     receiver, sender = ctx.Pipe(duplex=False)
     url = f"{ws_url}/stream"
     process = ctx.Process(
-        target=_readers, args=(f"{url}?rate={rate:g}", readers, ready, stop, sender)
+        target=_readers,
+        args=(f"{url}?rate={reader_rate or rate:g}", readers, ready, stop, sender),
     )
     process.start()
     try:

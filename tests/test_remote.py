@@ -698,3 +698,59 @@ def test_state_after_goals_is_exact(robot: spm.SPMRobot) -> None:
     assert moved.pairs == report.pairs
     np.testing.assert_allclose(twin.state().theta, path[2], atol=TOL["same_numbers"])
     assert twin.state().min_distance == report.min_distance
+
+
+def test_states_at_accepted_goals_equal_the_full_computation(robot: spm.SPMRobot) -> None:
+    """Between exact distances a streamed goal's state comes from the guard's safe
+    verdict and the single-input kinematics; every value equals, bit for bit, the
+    full computation (batch kinematics and Jacobian, the collision report)."""
+    from spm_pin.remote import backend
+
+    twin = KinematicBackend(robot=robot)
+    rng = np.random.default_rng(7)
+    accepted = 0
+    for theta in np.radians(rng.uniform(-60.0, 60.0, size=(40, 3))):
+        if not twin.guard.check(theta).safe:
+            assert twin._accepted_state(theta, 0.01) is None  # refused: the full path
+            continue
+        accepted += 1
+        fast = twin._accepted_state(theta, 0.01)
+        assert fast is not None
+        full = backend.GuardedTwin._compute_state(twin, theta, None)
+        assert fast.R is not None and full.R is not None
+        assert np.array_equal(fast.R, full.R)
+        assert (fast.reachable, fast.pairs, fast.assembly) == (
+            full.reachable,
+            full.pairs,
+            full.assembly,
+        )
+        assert fast.dexterity == full.dexterity
+        assert fast.singularity_margin == full.singularity_margin
+    assert accepted >= 10
+    unchecked = np.radians([3.0, 1.0, 2.0])
+    assert twin._accepted_state(unchecked, 0.01) is None  # never checked: the full path
+
+
+def test_command_quick_takes_exactly_the_goals_command_takes(robot: spm.SPMRobot) -> None:
+    """``command_quick`` (the event loop's path for streamed goals) accepts what
+    ``command`` accepts and, refusing, moves nothing and raises nothing; ``command``
+    then gives the refusal's report."""
+    from spm_pin.remote import GoalRefusedError
+
+    quick, full = KinematicBackend(robot=robot), KinematicBackend(robot=robot)
+    goals = np.radians([[2.0, 1.0, 0.5], list(STUDY_COLLISION_DEG), [4.0, 2.0, 1.0]])
+    for goal in goals:
+        before = quick.joints()
+        taken = quick.command_quick(goal)
+        try:
+            full.command(goal)
+            accepted = True
+        except GoalRefusedError as exc:
+            accepted = False
+            assert not exc.report.safe and exc.report.reasons
+        assert taken == accepted
+        assert np.array_equal(quick.joints(), goal if taken else before)
+        assert np.array_equal(quick.joints(), full.joints())
+    # Rate checks too: a jump far beyond the speed limit within 1 ms.
+    assert not quick.command_quick(goals[2] + 0.5, previous=goals[2], period=1e-3)
+    assert np.array_equal(quick.joints(), goals[2])

@@ -223,6 +223,11 @@ class SafetyGuard:
         self._remember(verdict)
         return verdict
 
+    def cached_verdict(self, theta: FloatArray) -> Verdict | None:
+        """The static verdict of a goal (3,) [rad] already checked and still in the
+        cache, or None (no checks run, nothing counted)."""
+        return self._cache.get(np.asarray(theta, dtype=float).tobytes())
+
     def static_verdict(self, theta: FloatArray) -> Verdict:
         """The static checks (1-4) of one goal (3,) [rad], uncached, on the fast path.
 

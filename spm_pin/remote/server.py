@@ -120,7 +120,14 @@ def check_binding(host: str, port: int, token: str | None) -> None:
 
 
 def _config(app: Any, host: str, port: int, log_level: str) -> uvicorn.Config:
-    return uvicorn.Config(app, host=host, port=port, log_level=log_level, server_header=False)
+    return uvicorn.Config(
+        app,
+        host=host,
+        port=port,
+        log_level=log_level,
+        server_header=False,
+        ws_per_message_deflate=False,
+    )
 
 
 def serve(

@@ -12,7 +12,9 @@ a streaming client never starts from a goal it has not seen.
 Per connection two tasks run in the event loop: the receiver (this module's
 :func:`stream_session`, answering every client message exactly once) and the pusher
 (a state every 1/rate seconds). The backend's calls take its lock and may take
-milliseconds: they run in worker threads. States come from one :class:`StateCache`
+milliseconds: they run in worker threads, except a twin's ``command_quick`` (the
+guard's checks of a streamed goal, a fraction of a millisecond), which runs in the
+event loop. States come from one :class:`StateCache`
 shared by every connection, so ten readers cost one backend read per period, not ten.
 """
 
@@ -379,7 +381,14 @@ class _Session:
                     theta, previous=self._previous, before_previous=self._before, period=period
                 )
 
-            await to_thread.run_sync(move)
+            # A twin whose guard checks alone take a fraction of a millisecond (the
+            # kinematic twin's ``command_quick``) takes a safe goal here, without a
+            # worker thread; a refusal's report (milliseconds) is made in one.
+            quick = getattr(twin, "command_quick", None)
+            if quick is None or not quick(
+                theta, previous=self._previous, before_previous=self._before, period=period
+            ):
+                await to_thread.run_sync(move)
         except GoalRefusedError as exc:
             failed = [{"check": check.name, "reason": check.reason} for check in exc.report.failed]
             verdict = check_response(exc.report).model_dump()
