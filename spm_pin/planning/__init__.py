@@ -4,6 +4,8 @@
   margin, dexterity, clearance margin: the static checks of the servos' guard), with
   the Lipschitz bounds that certify a path between its samples
   (:mod:`spm_pin.planning.safe_set`).
+* :class:`SafeCover`: cells of the gap plane certified safe at every point, a
+  quadtree grown as paths cross it (:mod:`spm_pin.planning.cover`).
 * :func:`plan`: a safe, near-shortest path between input angles or orientations,
   the mechanism turned the shortest way about its axis (or whole turns more)
   (:mod:`spm_pin.planning.planner`).
@@ -16,6 +18,7 @@
 
 from __future__ import annotations
 
+from .cover import SafeCover
 from .planner import PlannedPath, gap_length, plan
 from .plots import path_figure, save_path_figure
 from .safe_set import (
@@ -44,6 +47,7 @@ __all__ = [
     "MotionLimits",
     "PlanSettings",
     "PlannedPath",
+    "SafeCover",
     "SafeSet",
     "TimingLimits",
     "Trajectory",

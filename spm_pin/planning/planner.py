@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+import itertools
 import math
 import time
 from typing import Any
@@ -179,6 +180,8 @@ def _nearest_safe(safe: SafeSet, theta: FloatArray) -> FloatArray | None:
 
 
 def _require_safe(safe: SafeSet, theta: FloatArray, name: str) -> None:
+    if safe.cover.contains(theta):  # in a certified cell: safe
+        return
     evaluation = safe.evaluate(theta[None])
     if not evaluation.safe[0]:
         reason = evaluation.reason(0, safe.settings)
@@ -353,8 +356,11 @@ def _search(safe: SafeSet, theta0: FloatArray, theta1: FloatArray) -> tuple[Floa
 
     p0 = (float(g0[0]), float(g0[1]))
     p1 = (float(g1[0]), float(g1[1]))
-    starts = [n for n in _attach(safe, theta0) if certified(p0, point(n))][:1]
-    goals = [n for n in _attach(safe, theta1) if certified(point(n), p1)][:1]
+    # The nearest grid vertex reached safely (no further candidate is checked).
+    starts = list(
+        itertools.islice((n for n in _attach(safe, theta0) if certified(p0, point(n))), 1)
+    )
+    goals = list(itertools.islice((n for n in _attach(safe, theta1) if certified(point(n), p1)), 1))
     if not starts or not goals:
         raise PlanningError(
             "no safe way onto the search grid from the "

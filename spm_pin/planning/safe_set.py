@@ -42,6 +42,7 @@ from ..design import SPMDesign
 from ..errors import InputError
 from ..kinematics import forward_kinematics, jacobian
 from ..model.robot import SPMRobot
+from .cover import SafeCover
 
 __all__ = [
     "LIPSCHITZ_FACTOR",
@@ -177,6 +178,8 @@ class SafeSet:
         safe: (len(d12), len(d23)) vertices safe at the plain thresholds (and inside
             the gap triangle).
         lipschitz: The continuity bounds.
+        cover: The cells certified safe so far (:class:`~spm_pin.planning.cover.
+            SafeCover`), grown by :meth:`certify`.
         build_time_s: Seconds spent building.
     """
 
@@ -222,6 +225,7 @@ class SafeSet:
         evaluation = self._evaluate(theta, reachable, sing, dex, q, 0.0)
         self.safe = np.zeros(inside.shape, dtype=bool)
         self.safe[inside] = evaluation.safe
+        self.cover = SafeCover(self)
         self.build_time_s = time.perf_counter() - start
 
     # ---------------------------------------------------------------- geometry
@@ -367,6 +371,10 @@ class SafeSet:
     def certify(self, theta: npt.ArrayLike) -> tuple[bool, int, Evaluation]:
         """Check a polyline of input angles (n, 3) [rad] as a continuous path.
 
+        By the cells of :attr:`cover` it crosses (a path inside certified cells is
+        safe; its samples are then those cells' corners, and the path's own samples
+        where it crosses a finest cell that is not covered); where that fails, by
+        the path's own samples (:meth:`certify_samples`):
         The path is sampled at most ``check_step_deg`` of gap motion apart; each
         sample is certified safe within a radius (its slack in every check divided
         by the check's Lipschitz bound). Two neighbouring samples cover the way
@@ -378,6 +386,13 @@ class SafeSet:
             (safe, index of the first sample that failed or -1, the evaluation of
             the final samples).
         """
+        certificate = self.cover.certificate(theta)  # every cell it crosses certified
+        if certificate is not None:
+            return True, -1, certificate
+        return self.certify_samples(theta)
+
+    def certify_samples(self, theta: npt.ArrayLike) -> tuple[bool, int, Evaluation]:
+        """:meth:`certify` by the path's own samples alone (no cells)."""
         samples = self.densify(theta)
         want = 0.5 * self.settings.check_step_deg
         evaluation = self.evaluate(samples, want=want)

@@ -1,0 +1,379 @@
+"""A certified cover of the safe set: cells of the gap plane proven safe everywhere.
+
+A square cell of side ``a`` of the gap plane is safe at every point when each of its
+four corners is certified safe within ``a / sqrt(2)`` (every point of the square lies
+that near one of its corners): the home mode assembles there, the singularity margin
+and the dexterity exceed their thresholds by their Lipschitz bound times that radius,
+and no two links come nearer than the clearance margin (plus the yaw tolerance) plus
+the clearance bound times that radius: the continuity argument and the bounds of
+:class:`~spm_pin.planning.safe_set.SafeSet`, applied to cells instead of the samples
+of one path.
+
+The cells form a quadtree: root cells of side :data:`ROOT_STEP_DEG` and, where a
+cell is not covered, its four children, down to :data:`LEVELS` halvings. Nothing is
+computed in advance: a cell's corners are checked the first time a path crosses it
+and kept, so a cover grows with the paths asked of it and answers again in
+microseconds per cell. A straight segment of the gap plane is certified when every
+cell it crosses is covered (the segment is split exactly where it crosses the grid
+lines). Where a finest cell is not covered (at the boundary of the safe set), the
+piece of the segment inside it is certified by its own samples
+(:meth:`SafeSet.certify_samples`).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import itertools
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from ..kinematics import forward_kinematics, jacobian
+
+if TYPE_CHECKING:
+    from ..collision._configuration import Legs
+    from .safe_set import Evaluation, SafeSet
+
+__all__ = ["LEVELS", "ROOT_STEP_DEG", "SafeCover"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+#: Side of the root cells [deg] (corner checks at about 7 mm of raised clearance for
+#: the prototype: a fraction of a millisecond each).
+ROOT_STEP_DEG = 0.5
+#: Halvings of a root cell that is not covered, at most (finest side 0.5/32 deg).
+LEVELS = 5
+#: Vertices evaluated one by one on the float path (more: one numpy batch).
+SCALAR_BATCH = 12
+#: Undecided cells decided in one batch, at most.
+BATCH = 32
+#: Root-cell states.
+_UNKNOWN, _OPEN, _COVERED = -1, 0, 1
+
+
+class SafeCover:
+    """The quadtree of certified cells of a safe set (see the module).
+
+    Args:
+        safe: The safe set whose checks and Lipschitz bounds it applies.
+        root_step_deg: Side of the root cells [deg].
+        levels: Halvings of a root cell, at most.
+
+    Attributes:
+        stats: Counts: ``vertices`` evaluated, ``checks`` (collision checks),
+            ``cells`` decided.
+    """
+
+    def __init__(
+        self, safe: SafeSet, root_step_deg: float = ROOT_STEP_DEG, levels: int = LEVELS
+    ) -> None:
+        self.safe = safe
+        self.root = float(root_step_deg)
+        self.levels = int(levels)
+        self._fine = self.root / 2**self.levels  # the finest lattice [deg]
+        n = math.ceil(360.0 / self.root)
+        self._roots = np.full((n, n), _UNKNOWN, dtype=np.int8)
+        self._cells: dict[tuple[int, int, int], bool] = {}  # (level >= 1, i, j)
+        # Per vertex (finest-lattice key): reachable, singularity margin, dexterity, q.
+        self._vertices: dict[tuple[int, int], tuple[bool, float, float, FloatArray]] = {}
+        self._passes: dict[tuple[int, int, int], bool] = {}  # (i, j, level)
+        # Covered cells (level, i, j): the smallest singularity margin and dexterity
+        # of their corners.
+        self._minima: dict[tuple[int, int, int], tuple[float, float]] = {}
+        self.stats = collections.Counter[str]()
+        self._dense_evaluations: list[Evaluation] = []
+        self._pending: list[tuple[float, float]] = []
+        self._legs: Legs | None = None
+
+    # ------------------------------------------------------------------ vertices
+    def _radius(self, level: int) -> float:
+        return float(self.root / 2**level / math.sqrt(2.0))
+
+    def _ensure(self, keys: list[tuple[int, int]]) -> None:
+        """Evaluate the vertices not seen yet (one batch of kinematics)."""
+        todo = [k for k in dict.fromkeys(keys) if k not in self._vertices]
+        if not todo:
+            return
+        self.stats["vertices"] += len(todo)
+        if len(todo) <= SCALAR_BATCH:
+            for key in todo:
+                self._vertices[key] = self._one_vertex(key)
+            return
+        safe = self.safe
+        points = np.array(todo, dtype=float) * self._fine
+        d12, d23 = points[:, 0], points[:, 1]
+        inside = (d12 > 0.0) & (d23 > 0.0) & (d12 + d23 < 360.0)
+        theta = safe.theta_of(d12, d23, 0.0)
+        fk = forward_kinematics(theta, safe.design)
+        reachable = np.asarray(fk.reachable, dtype=bool) & inside
+        R = np.where(reachable[:, None, None], fk.R, np.eye(3))
+        jac = jacobian(theta, safe.design, R=R)
+        q = np.zeros((theta.shape[0], safe.robot.model.nq))
+        if np.any(reachable):
+            q[reachable] = safe.robot._configuration_from_rotation(theta[reachable], R[reachable])
+        for k, key in enumerate(todo):
+            self._vertices[key] = (
+                bool(reachable[k]),
+                float(jac.singularity_margin[k]),
+                float(jac.dexterity[k]),
+                q[k],
+            )
+
+    def _one_vertex(self, key: tuple[int, int]) -> tuple[bool, float, float, FloatArray]:
+        """One vertex on the single-input float path (forward kinematics, Jacobian
+        measures, closed configuration: the batch values to rounding, 1e-13)."""
+        from ..collision._configuration import leg_axes, rotation_configuration
+        from ..kinematics import _scalar
+        from ..kinematics.jacobian import SINGULAR_TOL
+
+        safe = self.safe
+        d12, d23 = key[0] * self._fine, key[1] * self._fine
+        nq = safe.robot.model.nq
+        if not (d12 > 0.0 and d23 > 0.0 and d12 + d23 < 360.0):
+            return False, math.nan, math.nan, np.zeros(nq)
+        theta = safe.theta_of(d12, d23, 0.0).tolist()
+        k = _scalar.constants(safe.design)
+        rows = _scalar.fk_home(theta, k)
+        if rows is None:
+            return False, math.nan, math.nan, np.zeros(nq)
+        sing, dex = _scalar.measures(theta, rows, k, SINGULAR_TOL)
+        if self._legs is None:
+            self._legs = leg_axes(safe.design)
+        q = np.asarray(rotation_configuration(theta, rows, self._legs), dtype=float)
+        return True, sing, dex, q
+
+    def _vertex_passes(self, key: tuple[int, int], level: int) -> bool:
+        """The vertex is certified safe within the radius of a cell of ``level``."""
+        cached = self._passes.get((key[0], key[1], level))
+        if cached is not None:
+            return cached
+        # Monotone in the radius: passing a larger one passes, failing a smaller fails.
+        for coarser in range(level):
+            if self._passes.get((key[0], key[1], coarser)) is True:
+                return True
+        for finer in range(level + 1, self.levels + 1):
+            if self._passes.get((key[0], key[1], finer)) is False:
+                return False
+        from .safe_set import YAW_TOLERANCE_M
+
+        safe, s, lip = self.safe, self.safe.settings, self.safe.lipschitz
+        reachable, sing, dex, q = self._vertices[key]
+        rho = self._radius(level)
+        ok = (
+            reachable
+            and sing >= s.min_singularity_margin + lip.singularity * rho
+            and dex >= s.min_dexterity + lip.dexterity * rho
+            and safe.checker.fixed_clearance >= s.margin
+        )
+        if ok:
+            self.stats["checks"] += 1
+            margin = s.margin + YAW_TOLERANCE_M + lip.clearance * rho
+            ok = not safe.checker.collisions(q, margin=margin, include_fixed=False)
+        self._passes[(key[0], key[1], level)] = ok
+        return ok
+
+    def _corners(self, level: int, i: int, j: int) -> list[tuple[int, int]]:
+        m = 2 ** (self.levels - level)
+        return [
+            (i * m, j * m),
+            ((i + 1) * m, j * m),
+            (i * m, (j + 1) * m),
+            ((i + 1) * m, (j + 1) * m),
+        ]
+
+    def _decide(self, level: int, cells: list[tuple[int, int]]) -> list[bool]:
+        corners = [self._corners(level, i, j) for i, j in cells]
+        self._ensure([key for four in corners for key in four])
+        self.stats["cells"] += len(cells)
+        decided = []
+        for (i, j), four in zip(cells, corners, strict=True):
+            covered = all(self._vertex_passes(key, level) for key in four)
+            if covered:
+                values = [self._vertices[key] for key in four]
+                self._minima[(level, i, j)] = (
+                    min(v[1] for v in values),
+                    min(v[2] for v in values),
+                )
+            decided.append(covered)
+        return decided
+
+    # ------------------------------------------------------------------ segments
+    @staticmethod
+    def _crossings(
+        p: tuple[float, float], d: tuple[float, float], step: float, t0: float, t1: float
+    ) -> list[tuple[float, float, int, int]]:
+        """The pieces (t_a, t_b, i, j) of p + t d, t in [t0, t1], between the grid
+        lines of ``step``, with the cell (i, j) each lies in."""
+        ts = [t0, t1]
+        for axis in (0, 1):
+            if d[axis] == 0.0:
+                continue
+            a, b = p[axis] + t0 * d[axis], p[axis] + t1 * d[axis]
+            low, high = (a, b) if a <= b else (b, a)
+            for k in range(math.floor(low / step) + 1, math.ceil(high / step)):
+                t = (k * step - p[axis]) / d[axis]
+                if t0 < t < t1:
+                    ts.append(t)
+        ts.sort()
+        pieces = []
+        for a, b in itertools.pairwise(ts):
+            if b - a <= 1e-15 and len(ts) > 2:
+                continue
+            m = 0.5 * (a + b)
+            i = math.floor((p[0] + m * d[0]) / step)
+            j = math.floor((p[1] + m * d[1]) / step)
+            pieces.append((a, b, i, j))
+        return pieces
+
+    def _walk(
+        self,
+        p: tuple[float, float],
+        d: tuple[float, float],
+        t0: float,
+        t1: float,
+        level: int,
+        cells: list[tuple[int, int, int]] | None,
+    ) -> bool:
+        """Every point of p + t d, t in [t0, t1], lies in a covered cell of ``level``
+        or finer (those cells go into ``cells``) or in finest cells that are not
+        covered, along pieces certified by their own samples; False at the first
+        piece that fails. Cells are decided in the order the segment meets them."""
+        pieces = self._crossings(p, d, self.root / 2**level, t0, t1)
+        if level == 0:
+            n = self._roots.shape[0]
+            if any(not (0 <= i < n and 0 <= j < n) for _, _, i, j in pieces):
+                return False
+        for k, (a, b, i, j) in enumerate(pieces):
+            covered = self._covered(level, pieces, k)
+            if covered:
+                if cells is not None:
+                    cells.append((level, i, j))
+                continue
+            if level < self.levels:
+                if not self._walk(p, d, a, b, level + 1, cells):
+                    return False
+            elif self._pending and self._pending[-1][1] == a:  # continues the last piece
+                self._pending[-1] = (self._pending[-1][0], b)
+            else:
+                self._pending.append((a, b))
+            if level == 0 and self._pending:  # the open run inside this root cell
+                pending, self._pending = self._pending, []
+                if not all(self._dense(p, d, u, v, cells) for u, v in pending):
+                    return False
+        return True
+
+    def _covered(self, level: int, pieces: list[tuple[float, float, int, int]], k: int) -> bool:
+        """Whether the cell of piece k is covered, deciding it (and up to
+        :data:`BATCH` undecided cells after it, for one batch of kinematics)."""
+        i, j = pieces[k][2], pieces[k][3]
+        if level == 0:
+            if self._roots[i, j] == _UNKNOWN:
+                ahead = [(c[2], c[3]) for c in pieces[k:] if self._roots[c[2], c[3]] == _UNKNOWN]
+                todo = list(dict.fromkeys(ahead))[:BATCH]
+                for (a, b), covered in zip(todo, self._decide(0, todo), strict=True):
+                    self._roots[a, b] = _COVERED if covered else _OPEN
+            return bool(self._roots[i, j] == _COVERED)
+        known = self._cells.get((level, i, j))
+        if known is None:
+            ahead = [(c[2], c[3]) for c in pieces[k:] if (level, c[2], c[3]) not in self._cells]
+            todo = list(dict.fromkeys(ahead))[:BATCH]
+            for cell, covered in zip(todo, self._decide(level, todo), strict=True):
+                self._cells[(level, cell[0], cell[1])] = covered
+            known = self._cells[(level, i, j)]
+        return known
+
+    def _dense(
+        self,
+        p: tuple[float, float],
+        d: tuple[float, float],
+        t0: float,
+        t1: float,
+        cells: list[tuple[int, int, int]] | None,
+    ) -> bool:
+        """A piece of a segment through finest cells that are not covered (at the
+        boundary of the safe set): certified by its own samples
+        (:meth:`SafeSet.certify_samples`); their evaluation joins the certificate."""
+        self.stats["dense"] += 1
+        ends = self.safe.theta_of(
+            np.array([p[0] + t0 * d[0], p[0] + t1 * d[0]]),
+            np.array([p[1] + t0 * d[1], p[1] + t1 * d[1]]),
+            0.0,
+        )
+        ok, _, evaluation = self.safe.certify_samples(ends)
+        if ok and cells is not None:
+            self._dense_evaluations.append(evaluation)
+        return ok
+
+    def covers_segment(self, p: npt.ArrayLike, q: npt.ArrayLike) -> bool:
+        """Every point of the gap-plane segment p-q [deg] lies in a covered cell."""
+        return self._segment(p, q, None)
+
+    def _segment(
+        self, p: npt.ArrayLike, q: npt.ArrayLike, cells: list[tuple[int, int, int]] | None
+    ) -> bool:
+        a = [float(x) for x in np.asarray(p, dtype=float).ravel()]
+        b = [float(x) for x in np.asarray(q, dtype=float).ravel()]
+        if not all(math.isfinite(x) for x in (*a, *b)):
+            return False
+        p, d = (a[0], a[1]), (b[0] - a[0], b[1] - a[1])
+        self._pending = []  # pieces in finest open cells, checked per root cell
+        return self._walk(p, d, 0.0, 1.0, 0, cells)
+
+    def gap_segments(self, theta: npt.ArrayLike) -> list[tuple[FloatArray, FloatArray]]:
+        """The gap-plane segments [deg] of a polyline of input angles (n, 3) [rad]:
+        each straight piece in input space is one straight segment of gaps (the gaps
+        are linear in the inputs), from the first vertex's gaps on, unwrapped."""
+        path = np.asarray(theta, dtype=float).reshape(-1, 3)
+        d12, d23, _ = self.safe.gaps_of(path[:1])
+        start = np.array([float(d12[0]), float(d23[0])])
+        deg = np.degrees(path - path[0])
+        points = start[None] + np.stack([deg[:, 0] - deg[:, 1], deg[:, 1] - deg[:, 2]], axis=1)
+        return [(points[k], points[k + 1]) for k in range(points.shape[0] - 1)]
+
+    def covers(self, theta: npt.ArrayLike) -> bool:
+        """A polyline of input angles (n, 3) [rad] lies in covered cells all along."""
+        return all(self._segment(p, q, None) for p, q in self.gap_segments(theta))
+
+    def contains(self, theta: npt.ArrayLike) -> bool:
+        """Input angles (3,) [rad] lie in a covered cell (so they are safe)."""
+        points = self.gap_segments(np.vstack([theta, theta]))
+        return self._segment(points[0][0], points[0][1], None)
+
+    def certificate(self, theta: npt.ArrayLike) -> Evaluation | None:
+        """The certificate of a polyline of input angles (n, 3) [rad] that lies in
+        covered cells all along, or None. One row per certified cell it crosses (the
+        smallest singularity margin and dexterity of the cell's corners; ``radius``
+        the radius its corners were certified within), then the samples of the
+        pieces certified by their own samples (at the boundary of the safe set).
+        """
+        from .safe_set import Evaluation
+
+        cells: list[tuple[int, int, int]] = []
+        self._dense_evaluations = []
+        if not all(self._segment(p, q, cells) for p, q in self.gap_segments(theta)):
+            return None
+        minima = [self._minima[cell] for cell in dict.fromkeys(cells)]
+        n = len(minima)
+        parts = [
+            Evaluation(
+                reachable=np.ones(n, dtype=bool),
+                singularity_margin=np.array([m[0] for m in minima], dtype=float),
+                dexterity=np.array([m[1] for m in minima], dtype=float),
+                colliding=np.zeros(n, dtype=bool),
+                safe=np.ones(n, dtype=bool),
+                radius=np.array([self._radius(c[0]) for c in dict.fromkeys(cells)], dtype=float),
+            ),
+            *self._dense_evaluations,
+        ]
+        if len(parts) == 1:
+            return parts[0]
+        return Evaluation(
+            *(
+                np.concatenate([getattr(part, f.name) for part in parts])
+                for f in dataclasses.fields(Evaluation)
+            )
+        )
