@@ -548,6 +548,62 @@ def figures_optimize(data: Mapping[str, Any]) -> list[Figure]:
     ]
 
 
+def figures_planning(data: Mapping[str, Any]) -> list[Figure]:
+    """One plan between random safe inputs; the peers are OMPL's RRTConnect (when
+    installed; on a subset of the pairs) and the straight line, certified."""
+    results, peer = data["results"], data["peer"]
+    plan, straight, ompl = results["plan"], peer["straight"], peer["ompl"]
+    available = bool(ompl.get("available"))
+    rows = [
+        timed(
+            "plan",
+            f"planning: safe path between random safe inputs ({plan['n']:,} pairs)",
+            plan,
+            peer_name=f"OMPL RRTConnect + simplify, {ompl['n']} pairs" if available else None,
+            peer=ompl if available else None,
+            ratio=ompl["speed_ratio_ours_vs_peer"] if available else None,
+            targets=("plan_median_s", "plan_p99_s"),
+        ),
+        valued(
+            "certified",
+            "planning: paths certified as continuous safe motions",
+            plan["certified_fraction"],
+            unit="fraction",
+            peer_name="OMPL RRTConnect + simplify" if available else None,
+            peer=ompl["certified_fraction"] if available else None,
+            higher_is_better=True,
+            targets=("plan_success",),
+        ),
+        timed(
+            "plan_vs_straight",
+            "planning: safe path, beside certifying the straight line",
+            plan,
+            peer_name="straight line, SafeSet.certify",
+            peer=straight,
+            ratio=straight["speed_ratio_ours_vs_peer"],
+        ),
+        valued(
+            "straight_safe",
+            "planning: straight lines start-goal certified safe",
+            1.0 - straight["unsafe_fraction"],
+            unit="fraction",
+            higher_is_better=True,
+        ),
+        timed("safe_set", "planning: build the safe set (prototype)", results["safe_set"]),
+    ]
+    duration = results["duration"]
+    if duration.get("available"):
+        rows.append(
+            valued(
+                "duration_vs_trapezoid",
+                "planning: timed motion / trapezoid duration, straight lines (median)",
+                duration["ratio_vs_trapezoid"]["median"],
+                unit="relative",
+            )
+        )
+    return rows
+
+
 @dataclasses.dataclass(frozen=True)
 class Benchmark:
     """One benchmark of the suite.
@@ -614,6 +670,19 @@ BENCHMARKS: dict[str, Benchmark] = {
             "envs",
             "gymnasium.vector.SyncVectorEnv over single OrientEnv objects (N Python environments)",
             figures_envs,
+        ),
+        Benchmark(
+            "optimize",
+            "spm_pin.workspace.workspace_map at the same grid and thresholds "
+            "(the full map, without the clearance field)",
+            figures_optimize,
+        ),
+        Benchmark(
+            "planning",
+            "OMPL's RRTConnect + path simplification (Python bindings) in the same input "
+            "space with the same validity check, on a subset of the pairs; and the "
+            "straight line, certified",
+            figures_planning,
         ),
     )
 }

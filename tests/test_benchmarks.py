@@ -209,6 +209,70 @@ def test_quick_optimize_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert data["targets"]["equal_to_map"]["pass"] is True
 
 
+def test_quick_planning_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Runs with or without OMPL (an optional peer) and toppra (the duration section)."""
+    from benchmarks import bench_planning
+    from spm_pin.planning import plan, safe_set_of
+
+    out = tmp_path / "planning.json"
+    assert bench_planning.main(["--quick", "--out", str(out)]) == 0
+    assert "Targets" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["benchmark"] == "planning" and data["config"]["quick"] is True
+    assert {"numpy", "ompl", "toppra"} <= set(data["machine"]["packages"])
+    assert set(data["results"]) == {"safe_set", "plan", "duration"}
+    assert set(data["peer"]) == {"straight", "ompl"}
+    sizes = bench_planning.QUICK
+    safe_set, planned = data["results"]["safe_set"], data["results"]["plan"]
+    straight = data["peer"]["straight"]
+    for entry in (safe_set, planned, straight):
+        assert set(entry) >= TIMING_KEYS - {"n"}
+        assert entry["p99_s"] >= entry["p95_s"] >= entry["median_s"] > 0
+    assert safe_set["samples"] == sizes.builds and safe_set["safe_vertices"] > 0
+    assert planned["n"] == straight["n"] == planned["samples"] == sizes.pairs
+    assert planned["planned"] + planned["failures"] == sizes.pairs
+    assert sum(planned["failure_reasons"].values()) == planned["failures"]
+    assert planned["certified"] == planned["planned"] == sizes.pairs
+    assert planned["max_endpoint_error_rad"] <= bench_planning.ENDPOINT_TOL
+    assert 0 <= planned["detours"] <= planned["planned"]
+    assert planned["length_vs_straight"]["min"] >= 1.0 - 1e-9
+    assert 0.0 <= straight["unsafe_fraction"] <= 1.0
+    assert straight["unsafe"] == round(straight["unsafe_fraction"] * straight["n"])
+
+    # The same pairs, planned here: the ends are the pair's, each path certified.
+    safe = safe_set_of()
+    pairs, _ = bench_planning.sample_pairs(safe, sizes.pairs)
+    assert len(pairs) == sizes.pairs
+    for start, goal in pairs:
+        path = plan(start, goal, safe=safe)
+        np.testing.assert_array_equal(path.theta[0], start)
+        np.testing.assert_array_equal(path.theta[-1], goal)
+        assert safe.certify(path.theta)[0]
+
+    ompl = data["peer"]["ompl"]
+    if importlib.util.find_spec("ompl") is None:
+        assert ompl["available"] is False and ompl["reason"]
+    else:
+        assert ompl["available"] is True, ompl.get("reason")
+        assert set(ompl) >= TIMING_KEYS - {"n"}
+        assert ompl["n"] == ompl["samples"] == sizes.ompl_pairs
+        assert 0 <= ompl["certified"] <= ompl["solved"] <= ompl["n"]
+        assert 0.0 <= ompl["success_fraction"] <= 1.0
+        assert ompl["speed_ratio_ours_vs_peer"] > 0
+        if ompl["solved"]:
+            assert ompl["max_endpoint_error_rad"] <= 1e-9
+    duration = data["results"]["duration"]
+    if importlib.util.find_spec("toppra") is None:
+        assert duration["available"] is False
+    else:
+        assert duration["available"] is True, duration.get("reason")
+        assert duration["n"] == min(sizes.duration_pairs, sizes.pairs - straight["unsafe"])
+        assert duration["max_trapezoid_disagreement_s"] < 1e-6  # plan_linear: same trapezoid
+        assert duration["ratio_vs_trapezoid"]["min"] > 0.99  # time-optimal along a line
+    assert set(data["targets"]) == {"plan_success", "all_pass"}  # times: full runs only
+    assert data["targets"]["plan_success"]["pass"] is True
+
+
 def test_quick_closure_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from benchmarks import bench_closure
 
