@@ -562,6 +562,12 @@ def figures_planning(data: Mapping[str, Any]) -> list[Figure]:
             peer_name=f"OMPL RRTConnect + simplify, {ompl['n']} pairs" if available else None,
             peer=ompl if available else None,
             ratio=ompl["speed_ratio_ours_vs_peer"] if available else None,
+        ),
+        timed(
+            "plan_cached",
+            "planning: the same, with the certified cells precomputed "
+            f"(level {results['cover']['fill_level']}, read from disk)",
+            results["plan_cached"],
             targets=("plan_median_s", "plan_p99_s"),
         ),
         valued(

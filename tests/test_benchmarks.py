@@ -220,7 +220,10 @@ def test_quick_planning_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     data = json.loads(out.read_text())
     assert data["benchmark"] == "planning" and data["config"]["quick"] is True
     assert {"numpy", "ompl", "toppra"} <= set(data["machine"]["packages"])
-    assert set(data["results"]) == {"safe_set", "plan", "duration"}
+    assert set(data["results"]) == {"safe_set", "cover", "plan", "plan_cached", "duration"}
+    cover = data["results"]["cover"]
+    assert cover["fill_level"] == 0 and cover["file_bytes"] > 0 and cover["load_s"] > 0
+    assert data["results"]["plan_cached"]["n"] == data["results"]["plan"]["n"]
     assert set(data["peer"]) == {"straight", "ompl"}
     sizes = bench_planning.QUICK
     safe_set, planned = data["results"]["safe_set"], data["results"]["plan"]

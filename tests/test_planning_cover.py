@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import spm_pin as spm
+from spm_pin.errors import InputError
 from spm_pin.hardware.config import SafetyLimits
 from spm_pin.hardware.guard import SafetyGuard
 from spm_pin.planning import SafeSet, safe_set_of
@@ -151,3 +153,48 @@ def test_a_certified_path_reports_its_cells(safe: SafeSet, guard: SafetyGuard) -
     before = dict(cover.stats)
     assert cover.covers(path)
     assert dict(cover.stats) == before
+
+
+def test_a_saved_cover_reads_back_the_same_cells(
+    safe: SafeSet, grown: SafeCover, tmp_path: Path
+) -> None:
+    route = np.radians([[10.0, 5.0, -5.0], [30.0, 20.0, 10.0]])
+    before = grown.certificate(route)  # its cells join the grown cover
+    path = tmp_path / "cover.npz"
+    grown.save(path)
+    loaded = SafeCover(safe)
+    loaded.load(path)
+    assert np.array_equal(loaded._roots, grown._roots)
+    assert loaded._cells == grown._cells and loaded._minima == grown._minima
+    # The path is certified from the file alone, unchanged.
+    after = loaded.certificate(route)
+    assert before is not None and after is not None
+    assert np.array_equal(before.dexterity, after.dexterity)
+    assert loaded.stats["vertices"] == 0  # nothing evaluated again
+
+
+def test_a_cover_of_other_settings_or_a_bad_file_is_refused(
+    safe: SafeSet, grown: SafeCover, tmp_path: Path
+) -> None:
+    path = tmp_path / "cover.npz"
+    grown.save(path)
+    with pytest.raises(InputError, match="another design"):
+        SafeCover(safe, levels=4).load(path)  # other cells: another fingerprint
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a cover")
+    with pytest.raises(InputError, match="not a saved cover"):
+        SafeCover(safe).load(bad)
+    with pytest.raises(InputError, match="not a saved cover"):
+        SafeCover(safe).load(tmp_path / "missing.npz")
+
+
+def test_filling_decides_the_root_cells_as_paths_would(safe: SafeSet) -> None:
+    filled = SafeCover(safe)
+    filled.fill(max_level=0)
+    decided = np.argwhere(filled._roots != -1)
+    covered = np.argwhere(filled._roots == 1)
+    assert len(covered) > 10_000  # most of the safe set is in whole root cells
+    lazy = SafeCover(safe)
+    rng = np.random.default_rng(4)
+    sample = [(int(i), int(j)) for i, j in decided[rng.choice(len(decided), 200, replace=False)]]
+    assert lazy._decide(0, sample) == [bool(filled._roots[i, j] == 1) for i, j in sample]

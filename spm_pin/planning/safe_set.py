@@ -42,6 +42,7 @@ from ..design import SPMDesign
 from ..errors import InputError
 from ..kinematics import forward_kinematics, jacobian
 from ..model.robot import SPMRobot
+from ._evaluation import YAW_TOLERANCE_M, Evaluation
 from .cover import SafeCover
 
 __all__ = [
@@ -64,9 +65,6 @@ LIPSCHITZ_FACTOR = 1.5
 LADDER_STEPS = 8
 #: Halvings of an interval of a path that its samples do not cover, at most.
 MAX_REFINEMENTS = 12
-#: Largest change of a link distance when the whole mechanism turns about the axis
-#: [m] (the base's tessellation; measured: 35 um), added to the clearance margin.
-YAW_TOLERANCE_M = 5e-5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,43 +122,6 @@ class Lipschitz:
     dexterity: float
     joint: float
     r_max: float
-
-
-@dataclasses.dataclass(frozen=True)
-class Evaluation:
-    """The checks at input angles (n, 3), with thresholds raised by a buffer.
-
-    Attributes:
-        reachable: The home assembly mode exists, (n,).
-        singularity_margin: (n,) (NaN where unreachable).
-        dexterity: (n,) (NaN where unreachable).
-        colliding: Two links nearer than the raised margin, (n,).
-        safe: Every check passes, (n,).
-        radius: Gap distance [deg] around each sample within which every check is
-            certified to pass (negative where the sample fails), (n,).
-    """
-
-    reachable: BoolArray
-    singularity_margin: FloatArray
-    dexterity: FloatArray
-    colliding: BoolArray
-    safe: BoolArray
-    radius: FloatArray
-
-    def reason(self, k: int, settings: PlanSettings) -> str:
-        """Why sample k is not safe (one sentence)."""
-        if not self.reachable[k]:
-            return "no home-mode assembly (unreachable)"
-        if self.singularity_margin[k] < settings.min_singularity_margin:
-            return (
-                f"too near a singularity (margin {self.singularity_margin[k]:.3f} < "
-                f"{settings.min_singularity_margin:g})"
-            )
-        if self.dexterity[k] < settings.min_dexterity:
-            return f"dexterity {self.dexterity[k]:.3f} < {settings.min_dexterity:g}"
-        if self.colliding[k]:
-            return f"links nearer than the margin {settings.margin * 1e3:g} mm (collision)"
-        return "too near the boundary of the safe set to certify"
 
 
 class SafeSet:
