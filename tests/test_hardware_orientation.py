@@ -145,6 +145,43 @@ def test_a_stream_tracks_then_slides_or_holds_and_never_sends_an_unsafe_goal(
     assert speeds.max() <= limits.max_speed * 1.05
 
 
+def test_a_stream_slides_along_the_boundary_towards_a_target_beyond_it(
+    bus: EmulatedBus, robot: spm.SPMRobot, guard: SafetyGuard
+) -> None:
+    """Streamed towards the notch goal (the straight way collides), the goal slides
+    along the boundary of the safe set: it keeps nearing the target after it first
+    meets the boundary, round the notch to the target, where mode "stop" stays at the
+    boundary; every goal sent is safe and within the speed limit."""
+    config = fast_config(bus.port)
+    start, goal = np.radians(NOTCH_START_DEG), np.radians(NOTCH_GOAL_DEG)
+    target = spm.forward_kinematics(goal).R
+    ends = {}
+    for mode in ("stop", "slide"):
+        with (
+            ServoBus(bus.port, IDS, baudrate=BAUD, latency_timer_ms=LATENCY_MS) as servos,
+            ServoSync(servos, config, robot=robot) as sync,
+        ):
+            sync.start()
+            assert move_planned(sync, start)[1].reached
+            before = len(bus.goal_writes())
+            stream = OrientationStream(sync, mode=mode)
+            steps = stream.run([target] * int(4.0 / config.period))
+            ends[mode] = float(np.linalg.norm(np.asarray(sync.goal) - goal))
+            assert not any("guard refused" in (s.reason or "") for s in steps)
+            if mode == "slide":
+                first = next(k for k, s in enumerate(steps) if s.action == "slide")
+                distances = [float(np.linalg.norm(s.goal - goal)) for s in steps]
+                assert distances[-1] < distances[first] - math.radians(2.0)  # slid on
+                assert stream.counts["slide"] >= 3
+        written = _written(bus, config, before)
+        assert all(guard.check(theta).safe for theta in written)
+        speeds = np.abs(np.diff(written, axis=0)).max(axis=1) / config.period
+        assert speeds.max() <= config.safety.max_speed * 1.05
+    assert ends["slide"] < ends["stop"] - math.radians(2.0)
+    # The notch is small: sliding along its edge leads round it, to the target.
+    assert ends["slide"] < math.radians(0.01)
+
+
 def test_spm_servo_move_rpy(
     bus: EmulatedBus, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -526,7 +526,8 @@ def add_servo_parser(commands: Any) -> None:
         "standard input): 'roll pitch yaw' [deg] per line, or 'hold'. Each target is "
         "solved, rate-limited and checked as a continuous motion in the safe set, then by "
         "the guard; an unsafe target never reaches the bus: with --mode slide (default) "
-        "the goal goes as far towards it as is safe, with --mode stop it holds. Torque "
+        "the goal slides along the boundary of the safe set towards it, with --mode stop "
+        "it holds. Torque "
         "goes off at the end; the summary counts what each target did and why.",
     )
     stream.add_argument("file", metavar="FILE", help="targets, one per line ('-': stdin)")
@@ -534,8 +535,8 @@ def add_servo_parser(commands: Any) -> None:
         "--mode",
         choices=("slide", "stop"),
         default="slide",
-        help="what an unsafe target does: slide (as far towards it as is safe, up to the "
-        "boundary of the safe set) or stop (hold the last safe goal)",
+        help="what an unsafe target does: slide (along the boundary of the safe set, as "
+        "near it as is safe) or stop (hold the last safe goal)",
     )
     stream.add_argument("--rate", type=_positive, metavar="HZ", help="loop rate [Hz]")
     _add_bus_options(stream)

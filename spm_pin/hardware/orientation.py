@@ -11,10 +11,12 @@
   axis nearest the present goal), rate-limited (speed and acceleration of the
   guard), and the step towards it checked as a continuous motion in the certified
   safe set before the sync loop's guard checks it again; an unsafe target never
-  reaches the bus. With ``mode="slide"`` (default) the goal goes as far towards the
-  target as is safe, up to the boundary of the safe set (it does not yet slide along
-  the boundary: a target beyond it stops the goal there); with
-  ``mode="stop"`` it holds the last safe goal. Every step says what it did and why.
+  reaches the bus. With ``mode="slide"`` (default) a step that would leave the safe
+  set slides along its boundary instead: the step's gap part turned by the smallest
+  angle that is safe and still brings the goal nearer the target (the turn about the
+  axis kept), else as far towards the target as is safe; the goal stops where the
+  boundary comes nearest the target. With ``mode="stop"`` it holds the last safe
+  goal. Every step says what it did and why.
 """
 
 from __future__ import annotations
@@ -48,6 +50,12 @@ FloatArray = npt.NDArray[np.float64]
 STREAM_MODES = ("slide", "stop")
 #: Bisections of the step towards an unsafe target (mode "slide").
 SLIDE_BISECTIONS = 12
+#: Turns of the blocked step's gap part tried to slide along the boundary [deg].
+SLIDE_ANGLES_DEG = (15.0, 30.0, 45.0, 60.0, 75.0)
+#: An orthonormal basis of the input changes that keep the mean input (the gaps).
+_GAP_BASIS = np.array([[1.0, -1.0, 0.0], [1.0, 1.0, -2.0]]) / np.array(
+    [[math.sqrt(2.0)], [math.sqrt(6.0)]]
+)
 
 
 def _safe_set(sync: ServoSync, safe: SafeSet | None) -> SafeSet:
@@ -181,7 +189,13 @@ class OrientationStream:
         self.sync = sync
         self.mode = mode
         self.safe = _safe_set(sync, safe)
-        self.velocity = np.zeros(3)
+        # The goal's present velocity, as the guard sees it (its last two goals).
+        before = sync._goal_before
+        self.velocity = (
+            np.zeros(3)
+            if before is None
+            else (np.asarray(sync.goal, dtype=float) - before) / sync.config.period
+        )
         self.counts = dict.fromkeys(("track", "slide", "hold"), 0)
 
     def solve(self, R: npt.ArrayLike) -> FloatArray:
@@ -222,6 +236,48 @@ class OrientationStream:
         result: FloatArray = goal + velocity * period
         return result
 
+    def _along(self, goal: FloatArray, nxt: FloatArray, target: FloatArray) -> FloatArray | None:
+        """A step from ``goal`` along the boundary of the safe set, when the step to
+        ``nxt`` leaves it: the gap part of the step turned by the smallest of
+        :data:`SLIDE_ANGLES_DEG` (either way) that is safe and brings the goal nearer
+        the target, shortened to its projection (the turn about the axis kept), then
+        rate-limited as the tracking step. None when no such step exists (the goal
+        stops at the boundary)."""
+        step = nxt - goal
+        mean = np.full(3, step.mean())
+        gap = step - mean  # the part that changes the gaps (zero mean)
+        a, b = float(gap @ _GAP_BASIS[0]), float(gap @ _GAP_BASIS[1])
+        if math.hypot(a, b) < 1e-12:
+            return None
+        now = float(np.linalg.norm(target - goal))
+        best: tuple[float, FloatArray] | None = None
+        for angle in SLIDE_ANGLES_DEG:
+            for sign in (1.0, -1.0):
+                phi = math.radians(sign * angle)
+                c, s = math.cos(phi), math.sin(phi)
+                turned = c * ((c * a - s * b) * _GAP_BASIS[0] + (s * a + c * b) * _GAP_BASIS[1])
+                candidate = self._rate_limited(goal, goal + mean + turned)
+                distance = float(np.linalg.norm(target - candidate))
+                if distance >= now - 1e-12 or not self._safe_step(goal, candidate):
+                    continue
+                if best is None or distance < best[0]:
+                    best = (distance, candidate)
+            if best is not None:
+                return best[1]
+        return None
+
+    def _rate_limited(self, goal: FloatArray, wanted: FloatArray) -> FloatArray:
+        """``wanted`` pulled in so that the step from ``goal`` keeps the guard's joint
+        speed and acceleration (from :attr:`velocity`)."""
+        limits = self.sync.guard.limits
+        period = self.sync.config.period
+        velocity = (wanted - goal) / period
+        dv = limits.max_acceleration * period
+        velocity = np.clip(velocity, self.velocity - dv, self.velocity + dv)
+        velocity = np.clip(velocity, -limits.max_speed, limits.max_speed)
+        result: FloatArray = goal + velocity * period
+        return result
+
     def _safe_step(self, goal: FloatArray, nxt: FloatArray) -> bool:
         return bool(self.safe.certify(np.vstack([goal, nxt]))[0])
 
@@ -251,8 +307,9 @@ class OrientationStream:
                             low = mid
                         else:
                             high = mid
-                    nxt = goal + low * (nxt - goal)
-                    action = "slide" if low > 0.0 else "hold"
+                    along = self._along(goal, nxt, target)
+                    nxt = goal + low * (nxt - goal) if along is None else along
+                    action = "slide" if np.any(nxt != goal) else "hold"
                 else:
                     nxt, action = goal, "hold"
         result = sync.step(None if action == "hold" else nxt)
