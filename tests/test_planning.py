@@ -194,6 +194,24 @@ def test_spm_plan_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert record["min_clearance_m"] >= record["limits"]["margin_m"]
 
 
+def test_spm_plan_keeps_its_cells_in_a_file(
+    tmp_path: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--cells FILE: written after a plan, read by the next process (here: after the
+    safe set's cache is emptied), refused for other settings with exit 2."""
+    cells = tmp_path / "cells.npz"
+    ask = ["plan", "--from", "10", "5", "-5", "--to", "30", "20", "10", "--json"]
+    assert main([*ask, "--cells", str(cells)]) == 0
+    first = json.loads(capsys.readouterr().out)["cells"]
+    assert cells.exists() and first["read"] == 0 and first["written"] > 0
+    safe_set_of.cache_clear()  # what a new process starts from
+    assert main([*ask, "--cells", str(cells)]) == 0
+    second = json.loads(capsys.readouterr().out)["cells"]
+    assert second["read"] == first["written"] and second["written"] >= second["read"]
+    assert main([*ask, "--margin-mm", "1.0", "--cells", str(cells)]) == 2
+    assert "another design, other settings" in capsys.readouterr().err
+
+
 def test_spm_plan_refuses_an_unsafe_goal_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plan", "--to", "60", "90", "220"]) == 2
     err = capsys.readouterr().err

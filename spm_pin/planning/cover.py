@@ -94,6 +94,11 @@ class SafeCover:
         self._pending: list[tuple[float, float]] = []
         self._legs: Legs | None = None
 
+    @property
+    def known_cells(self) -> int:
+        """How many cells are decided (covered or not), every level."""
+        return int(np.count_nonzero(self._roots != _UNKNOWN)) + len(self._cells)
+
     # ------------------------------------------------------------------ vertices
     def _radius(self, level: int) -> float:
         return float(self.root / 2**level / math.sqrt(2.0))
