@@ -4,8 +4,26 @@ Not imported by ``import spm_pin``: ``import spm_pin.optimize``. This first part
 scores a design quickly and exactly: :func:`safe_workspace_score` gives the figures of
 the safe orientation workspace that ``spm workspace`` reports (see
 :mod:`spm_pin.optimize.scoring`), with the base installation alone.
+:mod:`spm_pin.optimize.objectives` holds the variables of a study
+(:class:`DesignSpace`) and the objectives beyond the workspace's size (the global
+conditioning index, the worst dexterity over a required cone of tilts).
 """
 
+from .objectives import (
+    ConeDexterity,
+    DesignSpace,
+    Variable,
+    cone_dexterity,
+    global_conditioning_index,
+)
 from .scoring import WorkspaceScore, safe_workspace_score
 
-__all__ = ["WorkspaceScore", "safe_workspace_score"]
+__all__ = [
+    "ConeDexterity",
+    "DesignSpace",
+    "Variable",
+    "WorkspaceScore",
+    "cone_dexterity",
+    "global_conditioning_index",
+    "safe_workspace_score",
+]
