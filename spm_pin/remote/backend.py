@@ -469,13 +469,16 @@ class GuardedTwin:
         1 kHz while goals stream in needs). None for any other input.
 
         A safe verdict (collision margin >= 0) means the home mode exists there with
-        no colliding pair, and its singularity margin keeps every b_ii and det A away
-        from zero, so the assembly label is the home mode's.
+        no colliding pair, and its singularity margin (a positive threshold) keeps
+        every b_ii and det A away from zero, so the assembly label is the home mode's.
         """
         from ..kinematics import _scalar
 
+        limits = self.guard.limits
+        if limits.collision_margin < 0 or not limits.min_singularity_margin > 0:
+            return None  # the verdict would not settle the pairs or the label
         verdict = self.guard.cached_verdict(theta)
-        if verdict is None or not verdict.safe or self.guard.limits.collision_margin < 0:
+        if verdict is None or not verdict.safe:
             return None
         rows = _scalar.fk_home(theta.tolist(), _scalar.constants(self.design))
         if rows is None:  # pragma: no cover - a safe verdict is reachable
