@@ -19,7 +19,9 @@ from spm_pin.optimize import (
     DesignSpace,
     Variable,
     cone_dexterity,
+    envelope,
     global_conditioning_index,
+    home_clearance,
     safe_workspace_score,
 )
 from spm_pin.optimize.objectives import tilt_rotations
@@ -125,3 +127,36 @@ def test_the_cone_dexterity_is_the_worst_over_the_cone_and_free_in_yaw() -> None
 def test_bad_cones_are_input_errors(cone: float, step: float) -> None:
     with pytest.raises(InputError):
         cone_dexterity("prototype", cone, step_deg=step)
+
+
+def test_the_envelope_holds_every_moving_link_in_every_pose() -> None:
+    from spm_pin.collision import checker_of
+
+    robot = spm.build_robot()
+    box = envelope(robot=robot)
+    pieces = checker_of(robot).pieces
+    rng = np.random.default_rng(5)
+    reached = 0.0
+    for theta in np.radians(rng.uniform(-60.0, 60.0, size=(6, 3))):
+        if not spm.forward_kinematics(theta).reachable:
+            continue
+        placements = robot.placements(robot.configuration(theta))
+        for piece in pieces:
+            if piece.link == "base":
+                continue
+            frame = placements[piece.link]
+            world = piece.vertices @ np.asarray(frame.rotation).T + np.asarray(frame.translation)
+            reached = max(reached, float(np.max(np.linalg.norm(world, axis=1))))
+    assert reached == pytest.approx(box.radius_m, abs=1e-12)  # the links turn about O
+    base = np.vstack([p.vertices for p in pieces if p.link == "base"])
+    assert box.height_m == pytest.approx(box.radius_m - float(np.min(base[:, 2])), abs=1e-12)
+    assert box.base_radius_m == pytest.approx(float(np.max(np.hypot(base[:, 0], base[:, 1]))))
+
+
+def test_the_home_clearance_is_the_smallest_link_distance_at_home() -> None:
+    from spm_pin.collision import checker_of
+
+    robot = spm.build_robot()
+    distances = checker_of(robot).distances(robot.configuration(np.zeros(3)))
+    assert home_clearance(robot=robot) == pytest.approx(min(distances.values()), abs=1e-12)
+    assert 0.0 < home_clearance(robot=robot) < 0.002  # the nested drive tubes, 1 mm apart

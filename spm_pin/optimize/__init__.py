@@ -12,18 +12,24 @@ conditioning index, the worst dexterity over a required cone of tilts).
 from .objectives import (
     ConeDexterity,
     DesignSpace,
+    Envelope,
     Variable,
     cone_dexterity,
+    envelope,
     global_conditioning_index,
+    home_clearance,
 )
 from .scoring import WorkspaceScore, safe_workspace_score
 
 __all__ = [
     "ConeDexterity",
     "DesignSpace",
+    "Envelope",
     "Variable",
     "WorkspaceScore",
     "cone_dexterity",
+    "envelope",
     "global_conditioning_index",
+    "home_clearance",
     "safe_workspace_score",
 ]

@@ -8,7 +8,11 @@ variables and their bounds) and the objectives beyond the safe workspace's size
 * :func:`cone_dexterity`: the worst dexterity over a required workspace, a cone of
   platform tilts (every azimuth) with free yaw: for a coaxial design the dexterity
   does not change when all three inputs turn together (the whole mechanism turns
-  about the axis), so the torsion is left at zero.
+  about the axis), so the torsion is left at zero;
+* :func:`envelope`: the size of the robot: the ball about the centre O that holds
+  every moving link in every pose (they all turn about O), and the fixed base below;
+* :func:`home_clearance`: the smallest link distance at home (a constraint: no
+  collision at home).
 """
 
 from __future__ import annotations
@@ -30,9 +34,12 @@ __all__ = [
     "SIZE_VARIABLES",
     "ConeDexterity",
     "DesignSpace",
+    "Envelope",
     "Variable",
     "cone_dexterity",
+    "envelope",
     "global_conditioning_index",
+    "home_clearance",
     "tilt_rotations",
 ]
 
@@ -243,3 +250,55 @@ def cone_dexterity(
         reachable_fraction=float(np.mean(reachable)),
         samples=int(R.shape[0]),
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class Envelope:
+    """The room a design takes [m].
+
+    Attributes:
+        radius_m: Radius of the ball about O that holds every moving link (proximal,
+            distal, platform) in every pose: the links turn about O, so each point
+            keeps its distance from O.
+        base_radius_m: Largest distance of the fixed parts (base, servos) from the
+            turning axis.
+        height_m: From the lowest point of the fixed parts to the top of that ball.
+    """
+
+    radius_m: float
+    base_radius_m: float
+    height_m: float
+
+
+def _robot_of(design: SPMDesign | str | None) -> Any:
+    from ..collision import build_robot
+
+    return build_robot(SPMDesign.from_spec(design))
+
+
+def envelope(design: SPMDesign | str | None = None, *, robot: Any = None) -> Envelope:
+    """The envelope of a design from its links' real shapes (the convex pieces of
+    the collision model; ``robot``: one already built, else built here)."""
+    from ..collision import checker_of
+
+    robot = robot if robot is not None else _robot_of(design)
+    pieces = checker_of(robot).pieces
+    moving = np.vstack([p.vertices for p in pieces if p.link != "base"])
+    fixed = np.vstack([p.vertices for p in pieces if p.link == "base"])
+    radius = float(np.max(np.linalg.norm(moving, axis=1)))
+    axis = np.asarray(robot.design.u[0], dtype=float)  # the turning axis (coaxial)
+    along = fixed @ axis
+    across = np.linalg.norm(fixed - along[:, None] * axis, axis=1)
+    # The base lies along +u (below O for the prototype, u = -z).
+    height = radius + max(float(np.max(along)), -radius) if fixed.size else 2.0 * radius
+    return Envelope(radius_m=radius, base_radius_m=float(np.max(across)), height_m=height)
+
+
+def home_clearance(design: SPMDesign | str | None = None, *, robot: Any = None) -> float:
+    """The smallest distance between two checked links at home (all inputs 0) [m];
+    negative or 0 where links touch. The constraint "no collision at home" is
+    ``home_clearance(design) > margin``."""
+    from ..collision import check_input
+
+    robot = robot if robot is not None else _robot_of(design)
+    return float(check_input(np.zeros(3), robot).min_distance)
