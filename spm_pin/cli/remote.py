@@ -86,6 +86,44 @@ def _twin(args: argparse.Namespace, design: Any, stack: contextlib.ExitStack) ->
     return stack.enter_context(ServoBackend(bus, config, robot=build_robot(design)))
 
 
+def _serve_twin(
+    args: argparse.Namespace, design: Any, token: str | None, stack: Any, serve: Any
+) -> None:
+    """Open the twin in ``stack``, say where it is served, serve until interrupted."""
+    backend = _twin(args, design, stack)
+    host = f"[{args.host}]" if ":" in args.host else args.host
+    url = f"http://{host}:{args.port}"
+    guarded = "bearer token required" if token is not None else "no token: loopback only"
+    where = f" on {args.device}" if args.device is not None else ""
+    print(
+        f"spm serve: the {backend.name} twin of design {design.name!r}{where} at {url} "
+        f"(API docs at {url}/docs; {guarded}); Ctrl-C stops",
+        file=sys.stderr,
+        flush=True,
+    )
+    if args.viewer:
+        try:
+            from ..remote.viewer import TwinViewer
+
+            viewer = TwinViewer(backend)
+        except ImportError as exc:
+            raise _UsageError(
+                f'--viewer needs meshcat ({exc}): pip install "spm-pin[viz]"'
+            ) from exc
+        viewer_url = viewer.start()
+        stack.callback(viewer.stop)
+        print(f"spm serve: the viewer follows the twin at {viewer_url}", file=sys.stderr)
+    with contextlib.suppress(KeyboardInterrupt):
+        serve(
+            backend,
+            host=args.host,
+            port=args.port,
+            token=token,
+            deadline=args.deadline,
+            cors_origins=tuple(args.cors_origin or ()),
+        )
+
+
 def _run_serve(args: argparse.Namespace) -> int:
     try:  # imported here: FastAPI, uvicorn and pydantic are the remote extra
         from ..remote import check_binding, load_token, serve
@@ -94,49 +132,21 @@ def _run_serve(args: argparse.Namespace) -> int:
     token = load_token(args.token_file)
     check_binding(args.host, args.port, token)
     design = _design(args)
-    with contextlib.ExitStack() as stack:
-        backend = _twin(args, design, stack)
-        host = f"[{args.host}]" if ":" in args.host else args.host
-        url = f"http://{host}:{args.port}"
-        guarded = "bearer token required" if token is not None else "no token: loopback only"
-        where = f" on {args.device}" if args.device is not None else ""
-        print(
-            f"spm serve: the {backend.name} twin of design {design.name!r}{where} at {url} "
-            f"(API docs at {url}/docs; {guarded}); Ctrl-C stops",
-            file=sys.stderr,
-            flush=True,
-        )
-        if args.viewer:
-            try:
-                from ..remote.viewer import TwinViewer
 
-                viewer = TwinViewer(backend)
-            except ImportError as exc:
-                raise _UsageError(
-                    f'--viewer needs meshcat ({exc}): pip install "spm-pin[viz]"'
-                ) from exc
-            viewer_url = viewer.start()
-            stack.callback(viewer.stop)
-            print(f"spm serve: the viewer follows the twin at {viewer_url}", file=sys.stderr)
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
 
-        def interrupt(signum: int, frame: Any) -> None:
-            raise KeyboardInterrupt
-
-        # uvicorn shuts down gracefully on SIGINT and SIGTERM, then raises the signal
-        # again with the previous handlers: both end here as KeyboardInterrupt, exit 0.
-        previous = signal.signal(signal.SIGTERM, interrupt)
-        try:
-            with contextlib.suppress(KeyboardInterrupt):
-                serve(
-                    backend,
-                    host=args.host,
-                    port=args.port,
-                    token=token,
-                    deadline=args.deadline,
-                    cors_origins=tuple(args.cors_origin or ()),
-                )
-        finally:
-            signal.signal(signal.SIGTERM, previous)
+    # SIGTERM is Ctrl-C from the start (uvicorn shuts down gracefully on SIGINT and
+    # SIGTERM, then raises the signal again with the previous handlers): whenever it
+    # comes, the twin is closed (the servos' torque off) and the exit status is 0.
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        with contextlib.suppress(KeyboardInterrupt), contextlib.ExitStack() as stack:
+            _serve_twin(args, design, token, stack, serve)
+            # Served: nothing interrupts the closing below (torque off, viewer down).
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return 0
 
 
