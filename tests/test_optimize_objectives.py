@@ -57,6 +57,7 @@ def test_a_design_space_builds_designs_and_reads_them_back() -> None:
         {"alpha1_deg": 90.0, "beta_deg": 90.0},  # out of bounds
         {"alpha1_deg": math.nan, "beta_deg": 90.0},
         {"alpha1_deg": 45.0},  # missing
+        {"alpha1_deg": True, "beta_deg": 90.0},  # not a number
         {"alpha1_deg": 45.0, "beta_deg": 90.0, "alpha2_deg": 90.0},  # not a variable
     ],
 )
@@ -122,7 +123,7 @@ def test_the_cone_dexterity_is_the_worst_over_the_cone_and_free_in_yaw() -> None
 
 
 @pytest.mark.parametrize(
-    ("cone", "step"), [(-1.0, 2.0), (91.0, 2.0), (30.0, 0.0), (30.0, math.nan)]
+    ("cone", "step"), [(-1.0, 2.0), (91.0, 2.0), (30.0, 0.0), (30.0, math.nan), (True, 2.0)]
 )
 def test_bad_cones_are_input_errors(cone: float, step: float) -> None:
     with pytest.raises(InputError):

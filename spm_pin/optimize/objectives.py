@@ -53,6 +53,11 @@ SIZE_VARIABLES = tuple(
 )
 
 
+def _is_number(value: object) -> bool:
+    """A real number (an int or a float, not a bool)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 @dataclasses.dataclass(frozen=True)
 class Variable:
     """One variable of a study and its bounds (degrees for the link angles, metres
@@ -76,8 +81,8 @@ class Variable:
             )
         low, high = self.low, self.high
         if not (
-            isinstance(low, int | float)
-            and isinstance(high, int | float)
+            _is_number(low)
+            and _is_number(high)
             and math.isfinite(low)
             and math.isfinite(high)
             and low < high
@@ -131,7 +136,7 @@ class DesignSpace:
             )
         for variable in self.variables:
             value = values[variable.name]
-            if not isinstance(value, int | float) or not variable.low <= value <= variable.high:
+            if not _is_number(value) or not variable.low <= value <= variable.high:
                 raise InputError(  # NaN fails the comparison too
                     f"{variable.name} = {value!r} lies outside "
                     f"[{variable.low:g}, {variable.high:g}]",
@@ -221,14 +226,15 @@ def cone_dexterity(
 ) -> ConeDexterity:
     """The worst dexterity over platform tilts up to ``cone_deg`` in every azimuth
     (home working mode; free yaw: see the module), on a grid of tilt and azimuth
-    ``step_deg`` apart.
+    ``step_deg`` apart. For a design that is not coaxial the yaw is not free: the
+    figure is then that of zero torsion only.
 
     Raises:
         InputError: a cone outside [0, 90] deg or a step outside (0, 30] deg.
     """
-    if not isinstance(cone_deg, int | float) or not 0.0 <= cone_deg <= 90.0:
+    if not _is_number(cone_deg) or not 0.0 <= cone_deg <= 90.0:
         raise InputError(f"cone_deg must lie in [0, 90], got {cone_deg!r}", argument="cone_deg")
-    if not isinstance(step_deg, int | float) or not 0.0 < step_deg <= 30.0:
+    if not _is_number(step_deg) or not 0.0 < step_deg <= 30.0:
         raise InputError(f"step_deg must lie in (0, 30], got {step_deg!r}", argument="step_deg")
     spm_design = SPMDesign.from_spec(design)
     tilts = np.linspace(0.0, cone_deg, max(2, math.ceil(cone_deg / step_deg) + 1))
