@@ -15,9 +15,13 @@ that client and server do not share an interpreter lock. What is measured:
    connection, the body decoded), one request at a time.
 2. ``stream_<rate>``: one controlling client on ``WS /stream`` (the ``websockets``
    client) takes the lease and sends targets at 100 Hz and at 1 kHz, open loop on a
-   fixed schedule, each a small step along a straight line (well inside the guard's
-   speed and acceleration limits: the server times goals by their arrival), while 10
-   readers receive the state pushed at the same rate. For each target the time from
+   fixed schedule, each timed (``t``) with its time on that schedule: the platform
+   spins about the axis (the three inputs together), from rest at 300 deg/s^2 up to
+   30 deg/s (inside the guard's 90 deg/s and 360 deg/s^2), while 10 readers receive
+   the state pushed at the same rate. ``stream_1000_untimed`` sends the same goals
+   at 1 kHz without ``t``: the server then times them by their arrival, and network
+   jitter makes some look too fast (they are refused: counted, not an error of the
+   benchmark). For each target the time from
    its send to its answer (``ack``, ``refused`` or ``error``, matched by ``seq``);
    targets without an answer when the run ends are ``lost``
    (``acks + refused + errors + lost == sent``). For the pushes: how many each
@@ -83,11 +87,13 @@ TARGET_RATE = 1000.0
 TARGET_SUSTAINED = 990.0
 #: Stream rates of the controlling client and the readers [Hz].
 RATES = (100.0, 1000.0)
-#: Largest step of one target [deg]: 1 deg/s at 1 kHz, far below the guard's 90 deg/s
-#: even for two targets that arrive 0.1 ms apart.
-STEP_DEG = 1e-3
-#: Direction of the streamed path (per input; the largest component is 1).
-DIRECTION = (1.0, 0.6, -0.4)
+#: The streamed motion: from rest, this acceleration [deg/s^2] up to this speed [deg/s]
+#: (the guard's limits: 360 deg/s^2, 90 deg/s).
+ACCEL_DEG_S2 = 300.0
+SPEED_DEG_S = 30.0
+#: Direction of the streamed path (per input): all three together, a spin about the
+#: axis (safe however far it goes).
+DIRECTION = (1.0, 1.0, 1.0)
 #: Seconds between taking the lease and the first target (from rest, the first step's
 #: acceleration is then small).
 SETTLE_S = 0.05
@@ -163,12 +169,26 @@ async def _answer(ws: ClientConnection, seq: int, timeout: float) -> dict[str, A
             return message
 
 
+def _path(start_deg: np.ndarray[Any, Any], rate: float, count: int) -> np.ndarray[Any, Any]:
+    """Goals 1..count [deg], (count, 3), of the motion from rest at ``start_deg``,
+    one every 1/rate s."""
+    t = np.arange(1, count + 1) / rate
+    ramp = SPEED_DEG_S / ACCEL_DEG_S2
+    distance = np.where(
+        t <= ramp,
+        0.5 * ACCEL_DEG_S2 * t**2,
+        0.5 * ACCEL_DEG_S2 * ramp**2 + SPEED_DEG_S * (t - ramp),
+    )
+    goals: np.ndarray[Any, Any] = start_deg + distance[:, None] * np.asarray(DIRECTION)
+    return goals
+
+
 async def _control(
-    url: str, rate: float, count: int, start_deg: np.ndarray[Any, Any]
+    url: str, rate: float, count: int, start_deg: np.ndarray[Any, Any], *, timed: bool = True
 ) -> dict[str, Any]:
-    """Take the lease, send ``count`` targets at ``rate``, time every answer."""
-    step = STEP_DEG * np.asarray(DIRECTION)
-    goals = [start_deg + (k + 1) * step for k in range(count)]
+    """Take the lease, send ``count`` targets at ``rate`` (timed: with their times on
+    the schedule), time every answer."""
+    goals = _path(start_deg, rate, count)
     sent_at: dict[int, float] = {}
     answered_at: dict[int, float] = {}
     kinds: dict[str, int] = {"ack": 0, "refused": 0, "error": 0}
@@ -220,7 +240,10 @@ async def _control(
             delay = first + (k - 1) / rate - loop.time()
             if delay > 0:
                 await asyncio.sleep(delay)
-            text = json.dumps({"type": "target", "seq": k, "theta_deg": goal.tolist()})
+            message = {"type": "target", "seq": k, "theta_deg": goal.tolist()}
+            if timed:
+                message["t"] = first + (k - 1) / rate
+            text = json.dumps(message)
             sent_at[k] = time.perf_counter()
             await ws.send(text)
         send_end = time.perf_counter()
@@ -241,9 +264,10 @@ async def _control(
     lost = len(sent_at) - len(answered_at)
     if lost:
         why["lost: no answer"] = lost
-    final = start_deg + max(acked, default=0) * step
+    final = goals[max(acked) - 1] if acked else start_deg
     result: dict[str, Any] = {
         "rate_hz": rate,
+        "timed": timed,
         "sent": len(sent_at),
         "acks": kinds["ack"],
         "refused": kinds["refused"],
@@ -268,9 +292,11 @@ def bench_stream(
     readers: int,
     start_deg: Any,
     reader_rate: float | None = None,
+    *,
+    timed: bool = True,
 ) -> dict[str, Any]:
     """One controlling client at ``rate`` with ``readers`` readers at ``reader_rate``
-    (default: the same rate)."""
+    (default: the same rate); its targets timed (``t``) or not."""
     ctx = multiprocessing.get_context("spawn")
     ready, stop = ctx.Event(), ctx.Event()
     receiver, sender = ctx.Pipe(duplex=False)
@@ -284,7 +310,8 @@ def bench_stream(
         if not ready.wait(START_TIMEOUT_S):
             raise RuntimeError("the readers did not connect")
         count = max(round(seconds * rate), 2)
-        result = asyncio.run(_control(url, rate, count, np.asarray(start_deg, dtype=float)))
+        start = np.asarray(start_deg, dtype=float)
+        result = asyncio.run(_control(url, rate, count, start, timed=timed))
     finally:
         stop.set()
     counts: list[dict[str, Any]] = receiver.recv() if receiver.poll(START_TIMEOUT_S) else []
@@ -315,12 +342,12 @@ def bench_peer(n: int, rates: Sequence[float]) -> dict[str, Any]:
     backend = KinematicBackend()
     state, _ = time_each(lambda _: backend.state(), list(range(n)), warmup=5)
     results: dict[str, Any] = {"state": {**state.summary(), "n": n}}
-    step = np.radians(STEP_DEG * np.asarray(DIRECTION))
     for name, calls in (("command", n), ("move", max(n // 10, 5))):
         for rate in rates:
             theta = backend.joints()
+            step = np.radians(SPEED_DEG_S / rate * np.asarray(DIRECTION))
             goals = [theta + (k + 1) * step for k in range(calls)]
-            history = [theta - step, theta]  # already moving at the path's speed
+            history = [theta - step, theta]  # already cruising at the path's speed
             call = getattr(backend, name)
 
             def one(
@@ -389,6 +416,16 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             )
             results[f"stream_{rate:g}"] = stream
             start_deg = np.asarray(stream["final_deg"])
+        untimed = bench_stream(
+            base,
+            ws_url,
+            TARGET_RATE,
+            float(sizes["seconds"]),
+            int(sizes["readers"]),
+            start_deg,
+            timed=False,
+        )
+        results[f"stream_{TARGET_RATE:g}_untimed"] = untimed
     finally:
         process.terminate()  # SIGTERM: uvicorn shuts down, the twin stops
         process.join(30)
@@ -416,7 +453,8 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             "quick": quick,
             "sizes": sizes,
             "rates_hz": list(RATES),
-            "step_deg": STEP_DEG,
+            "accel_deg_s2": ACCEL_DEG_S2,
+            "speed_deg_s": SPEED_DEG_S,
             "direction": list(DIRECTION),
             "drain_s": DRAIN_S,
             "threads_limited_before_numpy": THREADS_LIMITED,
@@ -463,12 +501,16 @@ def report(payload: dict[str, Any]) -> str:
             rows.append(row(f"in process: backend.{name}(), {rate:g} Hz", entry, entry["n"]))
     table = format_table(["case", "n", "median", "p95", "p99"], rows)
     lines = []
-    for rate in RATES:
-        s = results[f"stream_{rate:g}"]
+    for key in [f"stream_{rate:g}" for rate in RATES] + [f"stream_{TARGET_RATE:g}_untimed"]:
+        if key not in results:
+            continue
+        s = results[key]
         r = s["readers"]
         why = ", ".join(f"{k} {v}" for k, v in s["why"].items()) or "none"
+        timing = "timed" if s.get("timed", True) else "untimed (arrival times)"
         lines.append(
-            f"{rate:g} Hz: sent {s['sent']} at {format_rate(s['send_rate_hz'])}, answered at "
+            f"{s['rate_hz']:g} Hz {timing}: sent {s['sent']} at "
+            f"{format_rate(s['send_rate_hz'])}, answered at "
             f"{format_rate(s['answer_rate_hz'])}: {s['acks']} acks, {s['refused']} refused, "
             f"{s['errors']} errors, {s['lost']} lost (why: {why}); {r['connections']} readers: "
             f"{format_count(r['received'])} states received of {format_count(r['pushed'])} "

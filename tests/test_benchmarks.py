@@ -427,12 +427,15 @@ def test_quick_remote_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert data["benchmark"] == "remote" and data["config"]["quick"] is True
     assert {"fastapi", "uvicorn", "httpx", "websockets"} <= set(data["machine"]["packages"])
     results = data["results"]
-    assert set(results) == {"get_state", "stream_100", "stream_1000", "peer"}
+    assert set(results) == {"get_state", "stream_100", "stream_1000", "stream_1000_untimed", "peer"}
     assert results["get_state"]["backend"] == "kinematic"
     assert results["get_state"]["p95_s"] >= results["get_state"]["median_s"] > 0
     readers = data["config"]["sizes"]["readers"]
-    for name in ("stream_100", "stream_1000"):
+    for name in ("stream_100", "stream_1000", "stream_1000_untimed"):
         stream = results[name]
+        assert stream["timed"] is (name != "stream_1000_untimed")
+        if stream["timed"]:  # a motion within the limits, timed by its own clock
+            assert stream["refused"] == 0, stream["why"]
         sent = stream["sent"]
         assert sent == round(data["config"]["sizes"]["seconds"] * stream["rate_hz"]), name
         assert stream["acks"] + stream["refused"] + stream["errors"] + stream["lost"] == sent

@@ -25,7 +25,7 @@ from _hardware_data import BAUD, IDS, LATENCY_MS
 from _prototype_truth import A1, A2, ETA, V0, U, rot, w_axes
 
 import spm_pin as spm
-from spm_pin.errors import UnsafeCommandError
+from spm_pin.errors import InputError, UnsafeCommandError
 from spm_pin.hardware import (
     EmulatedBus,
     HardwareConfig,
@@ -417,6 +417,52 @@ def test_acceleration_limit_through_the_guard(robot: spm.SPMRobot) -> None:
     assert not guard.check(
         stop_out, previous=moving, before_previous=np.zeros(3), period=PERIOD
     ).safe
+
+
+def test_unevenly_timed_goals_are_checked_with_the_speeds_of_their_intervals(
+    robot: spm.SPMRobot,
+) -> None:
+    """Goals h1 then h2 apart: the acceleration is the change of the two interval
+    speeds over (h1 + h2) / 2, the limit found by bisection on a sampled motion
+    (an independent truth: a constant-acceleration motion sampled at those times)."""
+    guard = SafetyGuard(robot, RATE_LIMITS)
+    h1, h2 = 0.03, 0.01
+    v = 0.5  # [rad/s]: cruising, well below MAX_SPEED
+
+    def goals(accel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # theta(t) = v t + accel t^2 / 2 from t = -h1 (before) over 0 (previous) to h2.
+        def at(t: float) -> np.ndarray:
+            return np.array([0.0, v * t + 0.5 * accel * t**2, 0.0])
+
+        return at(h2), at(0.0), at(-h1)
+
+    for factor, safe in ((1 - TOL["rate"], True), (1 + TOL["rate"], False)):
+        goal, previous, before = goals(MAX_ACCEL * factor)
+        verdict = guard.check(
+            goal, previous=previous, before_previous=before, period=h2, previous_period=h1
+        )
+        assert verdict.safe is safe, verdict.reasons
+        if not safe:
+            assert verdict.reasons[0].startswith("joint acceleration")
+    # Cruising at a constant speed after a refused goal: the next one spans two
+    # intervals (2 h after previous, which was h after before): no acceleration.
+    # Taken as evenly timed (no previous_period) the same goals would be refused.
+    h = 1e-3
+    goal, previous, before = (np.array([0.0, v * t, 0.0]) for t in (2 * h, 0.0, -h))
+    history = {"previous": previous, "before_previous": before, "period": 2 * h}
+    assert guard.check(goal, **history, previous_period=h).safe
+    assert guard.check(goal, **history).reasons == (_accel_reason(v / (4 * h)),)
+    # Evenly timed: previous_period equal to period gives the verdict without it.
+    goal, previous, before = goals(MAX_ACCEL * 2)
+    history = {"previous": previous, "before_previous": before, "period": h2}
+    assert (
+        guard.check(goal, **history, previous_period=h2).reasons
+        == guard.check(goal, **history).reasons
+    )
+    # A previous_period that is not a positive finite time is bad input.
+    for bad in (0.0, -h, math.nan, math.inf):
+        with pytest.raises(InputError, match="previous_period"):
+            guard.check(goal, **history, previous_period=bad)
 
 
 def test_speed_limit_on_the_bus(bus: EmulatedBus, servos: ServoBus, robot: spm.SPMRobot) -> None:

@@ -661,17 +661,17 @@ def test_streamed_goals_recompute_the_distance_at_most_every_interval(
     """While goals stream in, the exact distance is reused for DISTANCE_INTERVAL
     seconds (reads stay cheap); after the interval, or after move(), it is exact."""
     from spm_pin.collision import check_input
-    from spm_pin.remote import backend
+    from spm_pin.remote import kinematic
 
     twin = KinematicBackend(robot=robot)
     path = np.radians([[1.0, 0.5, -0.2], [6.0, 3.0, -1.2], [12.0, 6.0, -2.4]])
-    monkeypatch.setattr(backend, "DISTANCE_INTERVAL", 60.0)  # well within it
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 60.0)  # well within it
     twin.command(path[0])
     first = twin.state().min_distance
     assert first == check_input(path[0], robot).min_distance
     twin.command(path[1])
     assert twin.state().min_distance == first  # within the interval: the last one
-    monkeypatch.setattr(backend, "DISTANCE_INTERVAL", 0.0)  # past it
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 0.0)  # past it
     twin.command(path[2])
     assert twin.state().min_distance == check_input(path[2], robot).min_distance
     twin.command(path[1])

@@ -198,8 +198,12 @@ def test_a_too_fast_jump_is_refused_by_the_speed_check(
         assert "speed" in failed and failed <= {"speed", "acceleration"}
         reasons = " ".join(check["reason"] for check in answer["failed"])
         assert "deg/s > 90.0 deg/s" in reasons
+        # Refused for its speed alone: the exact distances are not computed.
+        assert answer["verdict"]["min_distance_m"] is None
+        assert answer["verdict"]["pairs"] == [] and answer["verdict"]["reachable"] is True
     assert _joints(http) == [0.0, 0.0, 0.0]
-    assert http.post("/check", json={"theta_deg": [30, 30, 30]}).json()["safe"] is True
+    check = http.post("/check", json={"theta_deg": [30, 30, 30]}).json()
+    assert check["safe"] is True and check["min_distance_m"] > 0
 
 
 MALFORMED = {
@@ -385,6 +389,95 @@ def test_the_period_is_measured_between_accepted_targets(
         assert [answer["type"] for answer in answers] == ["ack"] * 4, answers
         assert math.isclose(_joints(http)[0], theta, abs_tol=TOL["angles_deg"])
         assert _send(ws, {"type": "release"})["released"] is True
+
+
+# ----------------------------------------------------------------------- timed targets
+#: A timed stream: goals 1 ms apart on the client's clock, ramping at 300 deg/s^2
+#: (below the guard's 360) up to 30 deg/s, then cruising.
+TIMED = {"period_s": 1e-3, "accel_deg_s2": 300.0, "speed_deg_s": 30.0}
+
+
+def _timed_path(count: int) -> list[float]:
+    """Input 1 [deg] at goals 1..count of the timed stream (from rest at goal 0)."""
+    h, a, v = TIMED["period_s"], TIMED["accel_deg_s2"], TIMED["speed_deg_s"]
+    ramp = v / a
+    out = []
+    for k in range(1, count + 1):
+        t = k * h
+        out.append(0.5 * a * t**2 if t <= ramp else 0.5 * a * ramp**2 + v * (t - ramp))
+    return out
+
+
+def _send_timed(
+    ws: ClientConnection, seq: int, theta1: float, t: float, *, ahead: float = 0.005
+) -> dict[str, Any]:
+    """Send a goal timed ``t`` (client clock: time.monotonic) no more than ``ahead``
+    seconds before its time: goals go out in bursts of about five, as through a
+    jittery network."""
+    delay = t - ahead - time.monotonic()
+    if delay > 0:
+        time.sleep(delay)
+    return _send(ws, {"type": "target", "seq": seq, "theta_deg": [theta1, 0, 0], "t": t})
+
+
+def test_timed_targets_are_checked_on_their_times_and_a_refusal_does_not_cascade(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    """Goals sent in bursts (up to 5 ms early) pass on their own times; one goal
+    that jumps is refused, and the stream goes on from the last goal accepted."""
+    path = _timed_path(160)
+    jump = 120  # this goal jumps 1 deg ahead: 1,000 deg/s
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+        t0 = time.monotonic() + 0.05
+        kinds = {}
+        for k, theta1 in enumerate(path, start=1):
+            goal = theta1 + (1.0 if k == jump else 0.0)
+            answer = _send_timed(ws, k, goal, t0 + k * TIMED["period_s"])
+            kinds[k] = answer["type"]
+            if k == jump:
+                assert answer["type"] == "refused", answer
+                assert {check["check"] for check in answer["failed"]} >= {"speed"}
+        assert [k for k, kind in kinds.items() if kind != "ack"] == [jump], kinds
+        assert math.isclose(_joints(http)[0], path[-1], abs_tol=TOL["angles_deg"])
+        assert _send(ws, {"type": "release"})["released"] is True
+
+
+def test_goals_timed_ahead_of_the_clock_are_422_and_do_not_move(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    """Goals stamped 10 ms apart but sent back to back: once their times run more
+    than the slack (50 ms) ahead of the server's clock, they are refused."""
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+        time.sleep(0.05)
+        t0 = time.monotonic()
+        answers = []
+        for k in range(1, 21):
+            message = {
+                "type": "target",
+                "seq": k,
+                "theta_deg": [1e-4 * k, 0, 0],
+                "t": t0 + 0.01 * k,
+            }
+            answers.append(_send(ws, message))
+            if answers[-1]["type"] != "ack":
+                break
+        last = answers[-1]
+        assert last["type"] == "error" and last["status"] == 422, answers
+        assert "ahead of the server's clock" in last["detail"]
+        assert 5 <= len(answers) < 20
+        acked = answers[-2]["theta_deg"][0]
+        assert math.isclose(_joints(http)[0], acked, abs_tol=TOL["angles_deg"])
+        # Times must increase.
+        again = _send(ws, {"type": "target", "seq": 99, "theta_deg": [acked, 0, 0], "t": t0})
+        assert again["type"] == "error" and again["status"] == 422
+        assert "t must increase" in again["detail"]
+        # Not a finite number: 422 from the body's validation.
+        text = '{"type": "target", "seq": 100, "theta_deg": [0, 0, 0], "t": NaN}'
+        ws.send(text)
+        nan = _answer(ws)
+        assert nan["status"] == 422 and nan["detail"][0]["loc"][-1] == "t", nan
 
 
 # ----------------------------------------------------------------------- spm serve

@@ -11,7 +11,10 @@ A goal theta (input angles [rad]) passes when
 
 and, for a stream of goals sent every ``period`` seconds, when the commanded motion
 keeps |theta_k - theta_{k-1}| / period <= max_speed and
-|theta_k - 2 theta_{k-1} + theta_{k-2}| / period^2 <= max_acceleration.
+|theta_k - 2 theta_{k-1} + theta_{k-2}| / period^2 <= max_acceleration. Goals that are
+not evenly spaced in time (h_k = t_k - t_{k-1}) are checked with the speeds of their
+intervals: |v_k - v_{k-1}| / ((h_k + h_{k-1}) / 2) <= max_acceleration with
+v_k = (theta_k - theta_{k-1}) / h_k (the same number when h_k = h_{k-1}).
 
 A path (trajectory) is checked whole before its first command: every sample, and
 between samples further than ``path_resolution`` apart, linearly interpolated
@@ -341,6 +344,7 @@ class SafetyGuard:
         previous: npt.ArrayLike | None = None,
         before_previous: npt.ArrayLike | None = None,
         period: float | None = None,
+        previous_period: float | None = None,
     ) -> Verdict:
         """Check one goal, and the step to it from the previous commands.
 
@@ -348,8 +352,10 @@ class SafetyGuard:
             theta: The goal [rad], (3,).
             previous: The last goal sent [rad] (speed check).
             before_previous: The goal sent before it [rad] (acceleration check).
-            period: Time between commands [s] (needed for the speed and acceleration
-                checks).
+            period: Time between ``previous`` and this goal [s] (needed for the
+                speed and acceleration checks).
+            previous_period: Time between ``before_previous`` and ``previous`` [s]
+                (default: ``period``, goals evenly spaced in time).
 
         Returns:
             The verdict (``verdict.require()`` raises when unsafe).
@@ -363,6 +369,7 @@ class SafetyGuard:
                 _as_theta(previous, "previous"),
                 None if before_previous is None else _as_theta(before_previous, "before_previous"),
                 period,
+                previous_period,
             )
         if rate_reasons:
             verdict = dataclasses.replace(
@@ -373,12 +380,20 @@ class SafetyGuard:
         return verdict
 
     def _rate_reasons(
-        self, goal: FloatArray, previous: FloatArray, before: FloatArray | None, period: float
+        self,
+        goal: FloatArray,
+        previous: FloatArray,
+        before: FloatArray | None,
+        period: float,
+        previous_period: float | None = None,
     ) -> list[str]:
-        if not period > 0:
-            raise InputError(
-                f"period must be > 0 s, got {period!r}", argument="period", value=period
-            )
+        for name, value in (("period", period), ("previous_period", previous_period)):
+            if value is not None and not (value > 0 and math.isfinite(value)):
+                raise InputError(
+                    f"{name} must be a finite number > 0 s, got {value!r}",
+                    argument=name,
+                    value=value,
+                )
         limits = self.limits
         reasons = []
         speed = float(np.max(np.abs(goal - previous))) / period
@@ -388,7 +403,11 @@ class SafetyGuard:
                 f"{math.degrees(limits.max_speed):.1f} deg/s"
             )
         if before is not None:
-            accel = float(np.max(np.abs(goal - 2 * previous + before))) / period**2
+            if previous_period is None or previous_period == period:
+                accel = float(np.max(np.abs(goal - 2 * previous + before))) / period**2
+            else:  # unevenly spaced: the change of the speeds of the two intervals
+                change = (goal - previous) / period - (previous - before) / previous_period
+                accel = float(np.max(np.abs(change))) / (0.5 * (period + previous_period))
             if accel > limits.max_acceleration * (1 + _RATE_SLACK):
                 reasons.append(
                     f"joint acceleration {math.degrees(accel):.1f} deg/s^2 > "

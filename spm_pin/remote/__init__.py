@@ -49,7 +49,6 @@ from .backend import (
     GoalRefusedError,
     GoalReport,
     GuardedTwin,
-    KinematicBackend,
     PairState,
     TwinBackend,
     TwinState,
@@ -65,6 +64,7 @@ from .client import (
     Stream,
 )
 from .dynamic import DynamicBackend
+from .kinematic import KinematicBackend
 from .server import (
     DEFAULT_HOST,
     DEFAULT_PORT,

@@ -251,6 +251,7 @@ class MotionTwin(GuardedTwin):
         previous: npt.ArrayLike | None = None,
         before_previous: npt.ArrayLike | None = None,
         period: float | None = None,
+        previous_period: float | None = None,
     ) -> TwinState:
         """Head for a goal [rad], (3,), if it and the way there are safe.
 
@@ -258,7 +259,8 @@ class MotionTwin(GuardedTwin):
         goal it heads for now, at the guard's speed and acceleration limits, after
         the guard checked the whole line; with ``previous`` and ``period`` (a stream
         of goals) the goal is checked alone, with its speed (and, with
-        ``before_previous``, acceleration), and the twin heads for it at once.
+        ``before_previous``, acceleration, over ``previous_period`` and ``period``
+        when the goals are not evenly spaced), and the twin heads for it at once.
 
         Returns:
             The state right after the goal was accepted (``moving`` is True until
@@ -278,7 +280,7 @@ class MotionTwin(GuardedTwin):
                 goal=goal,
             )
         with self._lock:
-            self._accept(goal, last, before, period)
+            self._accept(goal, last, before, period, previous_period)
             if period is None:
                 with self._motion:
                     start = self._start_of_path()

@@ -67,7 +67,8 @@ from fastapi.security import HTTPBearer
 from .._version import __version__
 from ..errors import SPMError, UnreachableError, UnsafeCommandError
 from ..rotations import matrix_from_quaternion, matrix_from_rpy
-from .backend import GoalRefusedError, KinematicBackend, TwinBackend, TwinState
+from .backend import GoalRefusedError, TwinBackend, TwinState
+from .kinematic import KinematicBackend
 from .models import (
     CheckRequest,
     CheckResponse,

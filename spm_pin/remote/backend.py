@@ -3,8 +3,8 @@
 A backend holds the robot's state and moves it, one goal at a time, after the safety
 guard (:class:`~spm_pin.hardware.guard.SafetyGuard`, the same one that guards the
 servos) has accepted the goal. :class:`TwinBackend` is the protocol every backend
-follows; :class:`KinematicBackend` is the model alone: a twin whose input angles
-jump to each accepted goal.
+follows and :class:`GuardedTwin` what they share (the model, the guard, the report of
+a goal); :class:`~spm_pin.remote.kinematic.KinematicBackend` is the model alone.
 
 Every public method of a backend takes its lock: Pinocchio's data (and the guard's
 cache) are not safe to share between threads, and the server runs requests in a
@@ -48,7 +48,6 @@ __all__ = [
     "GoalRefusedError",
     "GoalReport",
     "GuardedTwin",
-    "KinematicBackend",
     "PairState",
     "TwinBackend",
     "TwinState",
@@ -63,10 +62,6 @@ CHECK_NAMES = ("joint_limits", "reachable", "singularity", "dexterity", "collisi
 #: The checks of a streamed goal against the goals commanded before it (reported
 #: only when they were evaluated, i.e. with a period).
 RATE_CHECK_NAMES = ("speed", "acceleration")
-
-#: While goals stream in (``command``), the kinematic twin's exact smallest link
-#: distance is computed again at most this often [s] (it costs ~15 ms).
-DISTANCE_INTERVAL = 0.1
 
 #: Words of the guard's reasons -> the check they belong to (first match wins).
 _REASON_WORDS = (
@@ -127,7 +122,10 @@ class GoalReport:
         assembly: The assembly mode the collisions were checked in (``"+++/-"``
             style), or None when no real assembly exists.
         min_distance: Smallest distance between two checked links [m] (negative on
-            overlap).
+            overlap); ``inf`` (``null`` on the wire) when the goal was refused for
+            its speed or acceleration alone: its static checks passed and the exact
+            distances (milliseconds) are not computed, so that a stream of such
+            refusals is answered as fast as it comes.
         collision_margin: The guard's collision margin [m].
     """
 
@@ -267,11 +265,13 @@ class TwinBackend(Protocol):
         previous: npt.ArrayLike | None = None,
         before_previous: npt.ArrayLike | None = None,
         period: float | None = None,
+        previous_period: float | None = None,
     ) -> TwinState:
         """Move to a goal [rad] if it is safe; raise GoalRefusedError (nothing
         moves) if not. With ``previous`` and ``period`` (a stream of goals), the
         guard's speed check applies too, with ``before_previous`` its acceleration
-        check."""
+        check (``previous_period``: the time between the two previous goals, when
+        not ``period``)."""
         ...
 
     def solve(self, R: npt.ArrayLike) -> FloatArray:
@@ -382,15 +382,25 @@ class GuardedTwin:
         before_previous: FloatArray | None = None,
         period: float | None = None,
         verdict: Verdict | None = None,
+        previous_period: float | None = None,
     ) -> GoalReport:
         from ..collision import check_input
 
         if verdict is None:
             verdict = self.guard.check(
-                theta, previous=previous, before_previous=before_previous, period=period
+                theta,
+                previous=previous,
+                before_previous=before_previous,
+                period=period,
+                previous_period=previous_period,
             )
         limits = self.guard.limits
-        report = check_input(theta, self.robot, margin=limits.collision_margin)
+        rate_only = bool(verdict.reasons) and all(
+            _check_of(reason) in RATE_CHECK_NAMES for reason in verdict.reasons
+        )
+        report = check_input(
+            theta, self.robot, margin=limits.collision_margin, distances=not rate_only
+        )
         pairs = list(verdict.collisions)
         pairs += [pair for pair in report.pairs if pair not in pairs]
         reasons = list(verdict.reasons)
@@ -502,6 +512,7 @@ class GuardedTwin:
         last: FloatArray | None = None,
         before: FloatArray | None = None,
         period: float | None = None,
+        previous_period: float | None = None,
     ) -> None:
         """Raise GoalRefusedError unless the goal is safe (call with the lock held).
 
@@ -512,9 +523,15 @@ class GuardedTwin:
         names the pairs, in the nearest real assembly mode when the home one does not
         exist).
         """
-        verdict = self.guard.check(goal, previous=last, before_previous=before, period=period)
+        verdict = self.guard.check(
+            goal,
+            previous=last,
+            before_previous=before,
+            period=period,
+            previous_period=previous_period,
+        )
         if not verdict.safe:
-            self._report(goal, last, before, period, verdict).require()
+            self._report(goal, last, before, period, verdict, previous_period).require()
 
     # ---------------------------------------------------------------- shared public
     def check(self, theta: npt.ArrayLike) -> GoalReport:
@@ -559,215 +576,3 @@ class GuardedTwin:
             for pair, distance in report.distances.items()
         )
         return CollisionState(theta, pairs)
-
-
-class KinematicBackend(GuardedTwin):
-    """The model alone: a twin whose input angles jump to each accepted goal.
-
-    Its state is computed when it is read, not when a goal is accepted, and kept
-    until the next goal: a stream of goals (:meth:`command`) pays for the guard's
-    checks only, and the exact smallest link distance (``min_distance``, the costly
-    part) is computed with the distance of the nearest pair of the previous state
-    as a cap, which prunes the other pairs early and gives the same minimum. While
-    goals stream in, it is computed again at most every :data:`DISTANCE_INTERVAL`
-    seconds (in between, a read gives the last one computed); after :meth:`move` it
-    is always exact.
-
-    Args:
-        design: The SPM (default: the prototype); ignored when ``robot`` is given.
-        robot: The robot with its collision checker (default
-            ``spm.build_robot(design)``).
-        limits: The guard's limits (default
-            :class:`~spm_pin.hardware.config.SafetyLimits`).
-        theta: The starting input angles [rad] (default: home, [0, 0, 0]); must be
-            safe.
-
-    Attributes:
-        name: ``"kinematic"``.
-        design: The design of the robot.
-        robot: The robot model.
-        guard: The safety guard every goal passes.
-    """
-
-    name = "kinematic"
-
-    def __init__(
-        self,
-        design: SPMDesign | None = None,
-        *,
-        robot: SPMRobot | None = None,
-        limits: SafetyLimits | None = None,
-        theta: npt.ArrayLike | None = None,
-    ) -> None:
-        super().__init__(design, robot=robot, limits=limits)
-        start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
-        report = self._report(start).require()
-        self._theta: FloatArray = start
-        self._state: TwinState | None = self._compute_state(start, report.min_distance)
-        # The exact distances: a robot of their own (built at the first read after
-        # a goal) and the link pair nearest at the last read, whose distance caps
-        # the search of the next minimum.
-        self._distance_lock = threading.Lock()
-        self._streaming = False  # the last goal came by command() (a stream)
-        self._last_distance: tuple[float, float] | None = None  # (monotonic time, m)
-        self._distance_robot: SPMRobot | None = None
-        self._nearest: LinkPair | None = None
-
-    def _min_distance(self, theta: FloatArray) -> float:
-        """The exact smallest link distance at an accepted goal [m] (home assembly
-        mode, every checked pair, as :func:`~spm_pin.collision.check_input`).
-
-        Computed on a robot of its own (under its own lock), so that the twin's lock
-        is not held meanwhile and goals keep being accepted. The distance of the pair
-        nearest last time bounds the minimum from above; with it as the cap, the
-        other pairs stop as soon as they cannot be nearer.
-        """
-        from ..collision import build_robot
-        from ..collision.checker import checker_of
-
-        with self._distance_lock:
-            if self._distance_robot is None:
-                self._distance_robot = build_robot(self.design)
-            robot = self._distance_robot
-            checker = checker_of(robot)
-            q = robot.configuration(theta)
-            nearest = self._nearest
-            if nearest is not None:
-                cap = checker.distances(q, pairs=[nearest])[nearest]
-                if math.isfinite(cap) and cap > 0.0:
-                    return float(checker.clearances(q[None], include_fixed=True, cap=cap)[0])
-            distances = checker.distances(q)
-            self._nearest = min(distances, key=distances.__getitem__)
-            return float(distances[self._nearest])
-
-    def state(self) -> TwinState:
-        """The current state (its ``time`` is now); computed at the first read after
-        a goal, then kept until the next.
-
-        The exact distances are computed without the twin's lock: a goal accepted
-        meanwhile is not held up, and this read answers the state at the goal it
-        started from (its own ``theta``, every value exact there).
-        """
-        with self._lock:
-            theta = self._theta
-        return self._state_at(theta)
-
-    def _state_at(self, theta: FloatArray) -> TwinState:
-        """The state at ``theta``, an accepted goal (the current one, or one that a
-        later goal has replaced meanwhile); kept when it is still the current one."""
-        with self._lock:
-            if self._state is not None and self._theta is theta:
-                return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
-        now = time.monotonic()
-        recent = self._last_distance
-        if self._streaming and recent is not None and now - recent[0] < DISTANCE_INTERVAL:
-            min_distance = recent[1]  # goals streaming in: at most DISTANCE_INTERVAL old
-        else:
-            min_distance = self._min_distance(theta)
-            self._last_distance = (time.monotonic(), min_distance)  # its age counts from now
-        with self._lock:
-            state = self._compute_state(theta, min_distance)
-            if self._theta is theta:
-                self._state = state
-            return dataclasses.replace(state, time=time.time(), stops=self.stops)
-
-    def joints(self) -> FloatArray:
-        """The current input angles [rad], (3,)."""
-        with self._lock:
-            theta: FloatArray = self._theta.copy()
-        return theta
-
-    def command(
-        self,
-        theta: npt.ArrayLike,
-        *,
-        previous: npt.ArrayLike | None = None,
-        before_previous: npt.ArrayLike | None = None,
-        period: float | None = None,
-    ) -> None:
-        """Jump to a goal [rad], (3,), if it is safe, without reading the state back
-        (what a streamed goal needs; :meth:`move` answers the state too).
-
-        Arguments and errors as :meth:`move`.
-        """
-        self._command(theta, previous, before_previous, period, streamed=True)
-
-    def command_quick(
-        self,
-        theta: npt.ArrayLike,
-        *,
-        previous: npt.ArrayLike | None = None,
-        before_previous: npt.ArrayLike | None = None,
-        period: float | None = None,
-    ) -> bool:
-        """:meth:`command` without the report of a refusal: True when the goal was
-        safe and taken, False when the guard refused it (nothing moved). Costs the
-        guard's checks alone (a fraction of a millisecond), so a server may call it
-        on its event loop and leave only refusals, whose report costs milliseconds,
-        to :meth:`command` in a worker thread.
-
-        Raises:
-            InputError: as :meth:`move`.
-        """
-        goal, last, before = _goal_arguments(theta, previous, before_previous)
-        with self._lock:
-            verdict = self.guard.check(goal, previous=last, before_previous=before, period=period)
-            if not verdict.safe:
-                return False
-            self._theta = goal
-            self._state = None
-            self._streaming = True
-        return True
-
-    def _command(
-        self,
-        theta: npt.ArrayLike,
-        previous: npt.ArrayLike | None,
-        before_previous: npt.ArrayLike | None,
-        period: float | None,
-        *,
-        streamed: bool = False,
-    ) -> FloatArray:
-        goal, last, before = _goal_arguments(theta, previous, before_previous)
-        with self._lock:
-            self._accept(goal, last, before, period)
-            self._theta = goal
-            self._state = None
-            self._streaming = streamed
-        return goal
-
-    def move(
-        self,
-        theta: npt.ArrayLike,
-        *,
-        previous: npt.ArrayLike | None = None,
-        before_previous: npt.ArrayLike | None = None,
-        period: float | None = None,
-    ) -> TwinState:
-        """Jump to a goal [rad], (3,), if it is safe.
-
-        Args:
-            theta: The goal [rad], (3,).
-            previous: For a stream of goals: the goal commanded before [rad]; with
-                ``period`` the guard checks the speed |theta - previous| / period.
-            before_previous: The goal commanded before ``previous`` [rad]; the
-                guard then checks the acceleration too.
-            period: Time since ``previous`` was commanded [s].
-
-        Returns:
-            The state at the goal.
-
-        Raises:
-            InputError: not 3 finite numbers.
-            GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
-                ``report`` says why); the state is unchanged.
-        """
-        return self._state_at(self._command(theta, previous, before_previous, period))
-
-    def stop(self, reason: str | None = None) -> TwinState:
-        """Nothing is ever in motion in the kinematic twin: it holds still, counts
-        the stop (``stops``, ``last_stop_reason``) and answers the state."""
-        with self._lock:
-            self.stops += 1
-            self.last_stop_reason = reason
-        return self.state()

@@ -29,6 +29,7 @@ import asyncio
 import itertools
 import json
 import math
+import time
 from collections.abc import AsyncIterator, Iterator
 from typing import TYPE_CHECKING, Any
 
@@ -156,6 +157,15 @@ def _goal(
             )
         return {name: quaternion}
     return {name: _vector(value, name, 3, _DEGREE_LIMIT)}
+
+
+def _stamp(t: float | None) -> float:
+    """A streamed goal's time [s]: ``t`` checked, or now on the monotonic clock."""
+    if t is None:
+        return time.monotonic()
+    if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
+        raise InputError(f"t must be a finite number of seconds, got {t!r}", argument="t", value=t)
+    return float(t)
 
 
 def _base_url(url: str) -> str:
@@ -606,17 +616,25 @@ class Stream(_StreamBase):
         quaternion_wxyz: npt.ArrayLike | None = None,
         *,
         seq: int | None = None,
+        t: float | None = None,
     ) -> dict[str, Any]:
         """Stream a goal (exactly one form) and wait for its answer: ``ack`` (with
         ``theta_deg``) or ``refused`` (with ``failed`` and ``verdict``), as a dict.
         Takes the lease if it is free.
 
+        ``t`` is the goal's time on this program's clock [s] (e.g. when the sample
+        it follows was taken, or its time on a planned trajectory; default: now, on
+        ``time.monotonic()``). The server's guard checks speed and acceleration over
+        these times, so network jitter does not make a goal look faster than it is;
+        goals may not be sent faster than their times say (50 ms slack).
+
         Raises:
             LeaseHeldError: another client holds the lease.
-            InputError: the server found the goal malformed or out of reach.
+            InputError: the server found the goal malformed, out of reach or timed
+                ahead of the clock.
         """
         goal = _goal(theta_deg, rpy_deg, quaternion_wxyz)
-        return self._ask("target", seq, **goal)
+        return self._ask("target", seq, **goal, t=_stamp(t))
 
     def take_lease(self) -> dict[str, Any]:
         """Take the lease: ``{"held": True, "deadline_s": ...}``; LeaseHeldError if taken."""
@@ -730,10 +748,11 @@ class AsyncStream(_StreamBase):
         quaternion_wxyz: npt.ArrayLike | None = None,
         *,
         seq: int | None = None,
+        t: float | None = None,
     ) -> dict[str, Any]:
         """As :meth:`Stream.send_target`."""
         goal = _goal(theta_deg, rpy_deg, quaternion_wxyz)
-        return await self._ask("target", seq, **goal)
+        return await self._ask("target", seq, **goal, t=_stamp(t))
 
     async def take_lease(self) -> dict[str, Any]:
         """As :meth:`Stream.take_lease`."""

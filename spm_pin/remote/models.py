@@ -108,6 +108,14 @@ class StreamTarget(_Request):
     theta_deg: Vector3 | None = Field(default=None, description="Input angles [deg].")
     rpy_deg: Vector3 | None = Field(default=None, description="Fixed-axis angles [deg].")
     quaternion_wxyz: Vector4 | None = Field(default=None, description="Quaternion (w, x, y, z).")
+    t: Number | None = Field(
+        default=None,
+        description=(
+            "The goal's time on the client's clock [s] (any origin, increasing). With "
+            "it the guard's speed and acceleration checks use the times between goals "
+            "that the client meant, not their arrival times (network jitter)."
+        ),
+    )
 
     @model_validator(mode="after")
     def _exactly_one(self) -> StreamTarget:

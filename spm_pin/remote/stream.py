@@ -16,6 +16,14 @@ milliseconds: they run in worker threads, except a twin's ``command_quick`` (the
 guard's checks of a streamed goal, a fraction of a millisecond), which runs in the
 event loop. States come from one :class:`StateCache`
 shared by every connection, so ten readers cost one backend read per period, not ten.
+
+The guard checks a streamed goal's speed and acceleration over the times between
+goals: their arrival times, or, when targets carry ``t`` (the goal's time on the
+client's clock), those times, which network jitter does not disturb. A client's
+times may not run ahead of the server's clock by more than :data:`CLOCK_SLACK` (plus
+:data:`CLOCK_DRIFT` of the time since its first timed goal): goals sent faster than
+their times say are answered 422. A refused goal changes nothing: the next one is
+checked against the last goal accepted, over the time since it.
 """
 
 from __future__ import annotations
@@ -42,6 +50,8 @@ from .backend import GoalRefusedError, TwinBackend
 from .models import CLIENT_MESSAGE, StreamAuth, StreamTarget, check_response, state_response
 
 __all__ = [
+    "CLOCK_DRIFT",
+    "CLOCK_SLACK",
     "DEFAULT_DEADLINE",
     "DEFAULT_RATE",
     "MAX_RATE",
@@ -64,6 +74,11 @@ MAX_RATE = 1000.0
 AUTH_TIMEOUT = 5.0
 #: WebSocket close code for a policy violation (wrong token, bad rate).
 POLICY_VIOLATION = 1008
+#: Seconds a streaming client's goal times ``t`` may run ahead of the server's clock
+#: (measured from the client's first timed goal under its lease).
+CLOCK_SLACK = 0.05
+#: Relative rate at which the client's clock may run faster than the server's.
+CLOCK_DRIFT = 1e-3
 
 
 class LeaseHeldError(SPMError):
@@ -204,10 +219,15 @@ class _Session:
         self.busy = False  # answering a message: the holder is not silent
         self._send_lock = asyncio.Lock()
         self._watchdog: asyncio.Task[None] | None = None
-        # The goals commanded under this lease [rad] and when the last one was [s].
+        # The goals commanded under this lease [rad], when the last one was [s]
+        # (server clock; and on the client's clock, for timed targets), the time
+        # between the two last ones [s] and the first timed goal (server, client).
         self._previous: Any = None
         self._before: Any = None
         self._commanded_at = 0.0
+        self._stamp: float | None = None
+        self._previous_period: float | None = None
+        self._anchor: tuple[float, float] | None = None
 
     @property
     def holds(self) -> bool:
@@ -257,6 +277,7 @@ class _Session:
         self._previous = await to_thread.run_sync(twin.joints)
         self._before = self._previous  # from rest
         self._commanded_at = time.monotonic()
+        self._stamp = self._previous_period = self._anchor = None
         self._watchdog = asyncio.ensure_future(self._watch())
         return True
 
@@ -364,7 +385,10 @@ class _Session:
             return
         twin = self.hub.twin
         now = time.monotonic()
-        period = max(now - self._commanded_at, 1e-6)
+        period = self._period(message.t, now)
+        if isinstance(period, str):
+            await self.send({"type": "error", "status": 422, "seq": seq, "detail": period})
+            return
         try:
             if message.theta_deg is not None:
                 theta = np.radians(message.theta_deg)
@@ -376,18 +400,21 @@ class _Session:
             # kinematic twin's ``command``) is spared that work: the pushes read it.
             command = getattr(twin, "command", None) or twin.move
 
+            history = {
+                "previous": self._previous,
+                "before_previous": self._before,
+                "period": period,
+                "previous_period": self._previous_period,
+            }
+
             def move() -> Any:
-                return command(
-                    theta, previous=self._previous, before_previous=self._before, period=period
-                )
+                return command(theta, **history)
 
             # A twin whose guard checks alone take a fraction of a millisecond (the
             # kinematic twin's ``command_quick``) takes a safe goal here, without a
             # worker thread; a refusal's report (milliseconds) is made in one.
             quick = getattr(twin, "command_quick", None)
-            if quick is None or not quick(
-                theta, previous=self._previous, before_previous=self._before, period=period
-            ):
+            if quick is None or not quick(theta, **history):
                 await to_thread.run_sync(move)
         except GoalRefusedError as exc:
             failed = [{"check": check.name, "reason": check.reason} for check in exc.report.failed]
@@ -401,10 +428,35 @@ class _Session:
             await self.send({"type": "error", "status": 422, "seq": seq, "detail": str(exc)})
             return
         self._before, self._previous = self._previous, np.array(theta, dtype=float)
-        self._commanded_at = now
+        self._commanded_at, self._previous_period = now, period
+        self._stamp = message.t
         self.hub.states.invalidate()
         degrees = [float(x) + 0.0 for x in np.degrees(theta)]
         await self.send({"type": "ack", "seq": seq, "theta_deg": degrees})
+
+    def _period(self, stamp: float | None, now: float) -> float | str:
+        """The time [s] from the last goal accepted to a goal arriving ``now`` with
+        the client's time ``stamp``; or why the stamp is refused."""
+        if stamp is None or self._stamp is None:
+            if stamp is not None and self._anchor is None:
+                self._anchor = (now, stamp)
+            return max(now - self._commanded_at, 1e-6)
+        if not stamp > self._stamp:
+            return (
+                f"t must increase: {stamp!r} s after {self._stamp!r} s "
+                "(the time of the last goal accepted)"
+            )
+        if self._anchor is not None:
+            elapsed = now - self._anchor[0]
+            ahead = (stamp - self._anchor[1]) - elapsed
+            allowed = CLOCK_SLACK + CLOCK_DRIFT * elapsed
+            if ahead > allowed:
+                return (
+                    f"the goals' times t run {ahead * 1e3:.1f} ms ahead of the server's "
+                    f"clock (at most {allowed * 1e3:.1f} ms): send goals no faster than "
+                    "their times"
+                )
+        return stamp - self._stamp
 
     async def close(self) -> None:
         """The connection ended: end its lease (the twin stops), even when the

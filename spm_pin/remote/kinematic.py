@@ -1,0 +1,257 @@
+"""The kinematic twin: the model alone, its input angles jumping to each accepted goal.
+
+What ``spm serve`` drives by default (``--sim kinematic``). The state is computed
+when read and kept until the next goal; the costly part, the exact smallest link
+distance, is computed on a robot of its own and, while goals stream in, at most every
+:data:`DISTANCE_INTERVAL` seconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from .backend import FloatArray, GuardedTwin, LinkPair, TwinState, _goal_arguments, _theta
+
+if TYPE_CHECKING:
+    from ..design import SPMDesign
+    from ..hardware.config import SafetyLimits
+    from ..model.robot import SPMRobot
+
+__all__ = ["DISTANCE_INTERVAL", "KinematicBackend"]
+
+#: While goals stream in (``command``), the kinematic twin's exact smallest link
+#: distance is computed again at most this often [s] (it costs ~15 ms).
+DISTANCE_INTERVAL = 0.1
+
+
+class KinematicBackend(GuardedTwin):
+    """The model alone: a twin whose input angles jump to each accepted goal.
+
+    Its state is computed when it is read, not when a goal is accepted, and kept
+    until the next goal: a stream of goals (:meth:`command`) pays for the guard's
+    checks only, and the exact smallest link distance (``min_distance``, the costly
+    part) is computed with the distance of the nearest pair of the previous state
+    as a cap, which prunes the other pairs early and gives the same minimum. While
+    goals stream in, it is computed again at most every :data:`DISTANCE_INTERVAL`
+    seconds (in between, a read gives the last one computed); after :meth:`move` it
+    is always exact.
+
+    Args:
+        design: The SPM (default: the prototype); ignored when ``robot`` is given.
+        robot: The robot with its collision checker (default
+            ``spm.build_robot(design)``).
+        limits: The guard's limits (default
+            :class:`~spm_pin.hardware.config.SafetyLimits`).
+        theta: The starting input angles [rad] (default: home, [0, 0, 0]); must be
+            safe.
+
+    Attributes:
+        name: ``"kinematic"``.
+        design: The design of the robot.
+        robot: The robot model.
+        guard: The safety guard every goal passes.
+    """
+
+    name = "kinematic"
+
+    def __init__(
+        self,
+        design: SPMDesign | None = None,
+        *,
+        robot: SPMRobot | None = None,
+        limits: SafetyLimits | None = None,
+        theta: npt.ArrayLike | None = None,
+    ) -> None:
+        super().__init__(design, robot=robot, limits=limits)
+        start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
+        report = self._report(start).require()
+        self._theta: FloatArray = start
+        self._state: TwinState | None = self._compute_state(start, report.min_distance)
+        # The exact distances: a robot of their own (built at the first read after
+        # a goal) and the link pair nearest at the last read, whose distance caps
+        # the search of the next minimum.
+        self._distance_lock = threading.Lock()
+        self._streaming = False  # the last goal came by command() (a stream)
+        self._last_distance: tuple[float, float] | None = None  # (monotonic time, m)
+        self._distance_robot: SPMRobot | None = None
+        self._nearest: LinkPair | None = None
+
+    def _min_distance(self, theta: FloatArray) -> float:
+        """The exact smallest link distance at an accepted goal [m] (home assembly
+        mode, every checked pair, as :func:`~spm_pin.collision.check_input`).
+
+        Computed on a robot of its own (under its own lock), so that the twin's lock
+        is not held meanwhile and goals keep being accepted. The distance of the pair
+        nearest last time bounds the minimum from above; with it as the cap, the
+        other pairs stop as soon as they cannot be nearer.
+        """
+        from ..collision import build_robot
+        from ..collision.checker import checker_of
+
+        with self._distance_lock:
+            if self._distance_robot is None:
+                self._distance_robot = build_robot(self.design)
+            robot = self._distance_robot
+            checker = checker_of(robot)
+            q = robot.configuration(theta)
+            nearest = self._nearest
+            if nearest is not None:
+                cap = checker.distances(q, pairs=[nearest])[nearest]
+                if math.isfinite(cap) and cap > 0.0:
+                    return float(checker.clearances(q[None], include_fixed=True, cap=cap)[0])
+            distances = checker.distances(q)
+            self._nearest = min(distances, key=distances.__getitem__)
+            return float(distances[self._nearest])
+
+    def state(self) -> TwinState:
+        """The current state (its ``time`` is now); computed at the first read after
+        a goal, then kept until the next.
+
+        The exact distances are computed without the twin's lock: a goal accepted
+        meanwhile is not held up, and this read answers the state at the goal it
+        started from (its own ``theta``, every value exact there).
+        """
+        with self._lock:
+            theta = self._theta
+        return self._state_at(theta)
+
+    def _state_at(self, theta: FloatArray) -> TwinState:
+        """The state at ``theta``, an accepted goal (the current one, or one that a
+        later goal has replaced meanwhile); kept when it is still the current one."""
+        with self._lock:
+            if self._state is not None and self._theta is theta:
+                return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
+        now = time.monotonic()
+        recent = self._last_distance
+        if self._streaming and recent is not None and now - recent[0] < DISTANCE_INTERVAL:
+            min_distance = recent[1]  # goals streaming in: at most DISTANCE_INTERVAL old
+        else:
+            min_distance = self._min_distance(theta)
+            self._last_distance = (time.monotonic(), min_distance)  # its age counts from now
+        with self._lock:
+            state = self._compute_state(theta, min_distance)
+            if self._theta is theta:
+                self._state = state
+            return dataclasses.replace(state, time=time.time(), stops=self.stops)
+
+    def joints(self) -> FloatArray:
+        """The current input angles [rad], (3,)."""
+        with self._lock:
+            theta: FloatArray = self._theta.copy()
+        return theta
+
+    def command(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+        previous_period: float | None = None,
+    ) -> None:
+        """Jump to a goal [rad], (3,), if it is safe, without reading the state back
+        (what a streamed goal needs; :meth:`move` answers the state too).
+
+        Arguments and errors as :meth:`move`.
+        """
+        self._command(theta, previous, before_previous, period, previous_period, streamed=True)
+
+    def command_quick(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+        previous_period: float | None = None,
+    ) -> bool:
+        """:meth:`command` without the report of a refusal: True when the goal was
+        safe and taken, False when the guard refused it (nothing moved). Costs the
+        guard's checks alone (a fraction of a millisecond), so a server may call it
+        on its event loop and leave only refusals, whose report costs milliseconds,
+        to :meth:`command` in a worker thread.
+
+        Raises:
+            InputError: as :meth:`move`.
+        """
+        goal, last, before = _goal_arguments(theta, previous, before_previous)
+        with self._lock:
+            verdict = self.guard.check(
+                goal,
+                previous=last,
+                before_previous=before,
+                period=period,
+                previous_period=previous_period,
+            )
+            if not verdict.safe:
+                return False
+            self._theta = goal
+            self._state = None
+            self._streaming = True
+        return True
+
+    def _command(
+        self,
+        theta: npt.ArrayLike,
+        previous: npt.ArrayLike | None,
+        before_previous: npt.ArrayLike | None,
+        period: float | None,
+        previous_period: float | None = None,
+        *,
+        streamed: bool = False,
+    ) -> FloatArray:
+        goal, last, before = _goal_arguments(theta, previous, before_previous)
+        with self._lock:
+            self._accept(goal, last, before, period, previous_period)
+            self._theta = goal
+            self._state = None
+            self._streaming = streamed
+        return goal
+
+    def move(
+        self,
+        theta: npt.ArrayLike,
+        *,
+        previous: npt.ArrayLike | None = None,
+        before_previous: npt.ArrayLike | None = None,
+        period: float | None = None,
+        previous_period: float | None = None,
+    ) -> TwinState:
+        """Jump to a goal [rad], (3,), if it is safe.
+
+        Args:
+            theta: The goal [rad], (3,).
+            previous: For a stream of goals: the goal commanded before [rad]; with
+                ``period`` the guard checks the speed |theta - previous| / period.
+            before_previous: The goal commanded before ``previous`` [rad]; the
+                guard then checks the acceleration too.
+            period: Time since ``previous`` was commanded [s].
+            previous_period: Time between ``before_previous`` and ``previous`` [s]
+                (default: ``period``).
+
+        Returns:
+            The state at the goal.
+
+        Raises:
+            InputError: not 3 finite numbers.
+            GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
+                ``report`` says why); the state is unchanged.
+        """
+        return self._state_at(
+            self._command(theta, previous, before_previous, period, previous_period)
+        )
+
+    def stop(self, reason: str | None = None) -> TwinState:
+        """Nothing is ever in motion in the kinematic twin: it holds still, counts
+        the stop (``stops``, ``last_stop_reason``) and answers the state."""
+        with self._lock:
+            self.stops += 1
+            self.last_stop_reason = reason
+        return self.state()
