@@ -7,10 +7,15 @@ Importing this package registers, with Gymnasium:
   vector environment :class:`OrientVectorEnv` steps N robots as numpy batches
   (``gymnasium.make_vec("spm_pin/Orient-v0", num_envs=N,
   vectorization_mode="vector_entry_point")``).
+* ``spm_pin/OrientDynamic-v0``: the same task on the robot's reduced dynamics under
+  its servos, position or torque actuation (:class:`OrientDynamicEnv`, physics
+  :class:`PhysicsSettings`); its native vector environment
+  :class:`OrientDynamicVectorEnv`.
 
 Options: :class:`OrientSettings` (design, servo limits, goal sampling, safety mode,
 reward weights :class:`RewardWeights`, observation noise), passed as keyword
-arguments to ``gymnasium.make``.
+arguments to ``gymnasium.make`` (with the fields of :class:`PhysicsSettings` for the
+dynamic environment).
 """
 
 from __future__ import annotations
@@ -18,12 +23,16 @@ from __future__ import annotations
 import gymnasium
 
 from ._core import OBSERVATION_SIZE, geodesic_angle
+from ._dynamic import ACTUATIONS, PhysicsSettings
 from ._render import FRAME_PIXELS
 from .orient import RENDER_MODES, OrientEnv
+from .orient_dynamic import OrientDynamicEnv
 from .settings import GOAL_MODES, SAFETY_MODES, START_MODES, OrientSettings, RewardWeights
 from .vector import OrientVectorEnv
+from .vector_dynamic import OrientDynamicVectorEnv
 
 __all__ = [
+    "ACTUATIONS",
     "ENV_IDS",
     "FRAME_PIXELS",
     "GOAL_MODES",
@@ -31,19 +40,29 @@ __all__ = [
     "RENDER_MODES",
     "SAFETY_MODES",
     "START_MODES",
+    "OrientDynamicEnv",
+    "OrientDynamicVectorEnv",
     "OrientEnv",
     "OrientSettings",
     "OrientVectorEnv",
+    "PhysicsSettings",
     "RewardWeights",
     "geodesic_angle",
 ]
 
 #: The registered environment ids.
-ENV_IDS = ("spm_pin/Orient-v0",)
+ENV_IDS = ("spm_pin/Orient-v0", "spm_pin/OrientDynamic-v0")
 
 if "spm_pin/Orient-v0" not in gymnasium.registry:
     gymnasium.register(
         "spm_pin/Orient-v0",
         entry_point="spm_pin.envs.orient:OrientEnv",
         vector_entry_point="spm_pin.envs.vector:OrientVectorEnv",
+    )
+
+if "spm_pin/OrientDynamic-v0" not in gymnasium.registry:
+    gymnasium.register(
+        "spm_pin/OrientDynamic-v0",
+        entry_point="spm_pin.envs.orient_dynamic:OrientDynamicEnv",
+        vector_entry_point="spm_pin.envs.vector_dynamic:OrientDynamicVectorEnv",
     )

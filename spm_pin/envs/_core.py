@@ -191,20 +191,23 @@ class OrientCore:
         return low
 
     # ---------------------------------------------------------------- stepping
+    def command(self, a: FloatArray, previous: FloatArray) -> FloatArray:
+        """Commanded speeds [rad/s] of normalised actions ``a`` (n, 3) in [-1, 1]: times
+        ``max_speed``, with ``limit_acceleration`` kept within the guard's acceleration
+        of the ``previous`` command (n, 3) over one control period."""
+        command = a * self.limits.max_speed
+        if self.settings.limit_acceleration:
+            dv = self.limits.max_acceleration * self.settings.control_period
+            command = np.clip(command, previous - dv, previous + dv)
+        return command
+
     def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
         """Step ``rows`` with normalised actions (n, 3) in [-1, 1]."""
         s = self.settings
-        w = s.weights
-        dt = s.control_period
-        vmax = self.limits.max_speed
         a = np.clip(action, -1.0, 1.0)
-        command = a * vmax
-        speed = self.speed[rows]
-        if s.limit_acceleration:
-            dv = self.limits.max_acceleration * dt
-            command = np.clip(command, speed - dv, speed + dv)
+        command = self.command(a, self.speed[rows])
         theta = self.theta[rows]
-        step = command * dt
+        step = command * s.control_period
         ok = self.safe(theta + step)
         fraction = ok.astype(float)
         unsafe = np.zeros(rows.size, dtype=bool)
@@ -216,7 +219,23 @@ class OrientCore:
                 unsafe[bad] = True
         new_theta = theta + fraction[:, None] * step
         new_speed = fraction[:, None] * command
-        fk = forward_kinematics(new_theta, self.design)
+        return self.settle(rows, a, new_theta, new_speed, fraction, unsafe)
+
+    def settle(
+        self,
+        rows: IntArray,
+        a: FloatArray,
+        theta: FloatArray,
+        speed: FloatArray,
+        fraction: FloatArray,
+        unsafe: BoolArray,
+    ) -> StepResult:
+        """Enter the (safe) state theta, speed (n, 3) in ``rows`` after a step with the
+        clipped actions ``a``: the platform rotation, the reward, the goal counter and
+        the ends (``fraction`` of the step taken, ``unsafe`` rows ended by the guard)."""
+        s = self.settings
+        w = s.weights
+        fk = forward_kinematics(theta, self.design)
         R = np.where(fk.reachable[:, None, None], fk.R, self.R[rows])
         error = geodesic_angle(R, self.goal[rows])
         hold = np.where(error <= s.tolerance, self.hold[rows] + 1, 0)
@@ -231,8 +250,8 @@ class OrientCore:
             + w.success * success
             - w.unsafe * unsafe
         )
-        self.theta[rows] = new_theta
-        self.speed[rows] = new_speed
+        self.theta[rows] = theta
+        self.speed[rows] = speed
         self.R[rows] = R
         self.hold[rows] = hold
         self.steps[rows] = steps
@@ -252,7 +271,7 @@ class OrientCore:
                 six_d(self.goal[rows]),
                 np.sin(theta),
                 np.cos(theta),
-                self.speed[rows] / self.limits.max_speed,
+                np.clip(self.speed[rows] / self.limits.max_speed, -1.0, 1.0),
             ],
             axis=-1,
         )

@@ -1,0 +1,308 @@
+"""The batched dynamic core of ``spm_pin/OrientDynamic-v0`` (:class:`DynamicCore`).
+
+It is an :class:`~spm_pin.envs._core.OrientCore` (the same goals, safety checks,
+reward, observation and episode counters) whose robots move by the reduced dynamics
+(:class:`~spm_pin.dynamics.ReducedDynamics`) under the servos' torques instead of
+following the commanded speeds exactly. The state of N robots is their input angles
+and speeds (N, 3) each (no passive joint is integrated, so the loops cannot drift),
+stepped as numpy batches in ``substeps`` physics steps per control period.
+
+**Actuation** (:class:`PhysicsSettings`):
+
+* ``"position"`` (default): the action is the speed of each servo's goal position,
+  ``a * max_speed`` (first kept within the guard's acceleration of the last one when
+  ``limit_acceleration`` is set, as the commanded speeds of ``spm_pin/Orient-v0``
+  are): the goal moves at that speed through the control period (the servo's
+  profile), and the servo's PD position loop,
+  ``kp (goal - theta) + kd (goal speed - theta_dot)``, follows it with its torque
+  clipped to the torque-speed envelope at every physics step
+  (:class:`~spm_pin.dynamics.ServoModel`). A zero action holds the goal. (The inputs
+  may turn 200 times either way, so absolute goals cannot be normalised to [-1, 1].)
+* ``"torque"``: the action times the servo's stall torque is the motor torque, clipped
+  to the torque-speed envelope at the present speed at every physics step.
+
+**Safety**: the state at the end of each control period passes the guard's static
+checks (:meth:`~spm_pin.envs._core.OrientCore.safe`). When it does not, or when the
+dynamics cannot go on (a state without a home-mode assembly, a parallel singularity),
+``safety="clip"`` stops the robot at the last safe physics step of the period (found
+by bisection over the steps, each candidate checked), its speeds zeroed and its goal
+position set there, as the guard's stop would; ``safety="terminate"`` keeps the state
+of the period's start (speeds zeroed) and ends the episode with the penalty.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..dynamics import XM540_W150, ReducedDynamics, ServoModel
+from ..errors import InputError, SPMError
+from ._core import BoolArray, FloatArray, IntArray, OrientCore, StepResult
+from .settings import OrientSettings, _choice, _number
+
+__all__ = ["ACTUATIONS", "INTEGRATORS", "DynamicCore", "PhysicsSettings", "physics_from"]
+
+#: What an action of the dynamic environment commands.
+ACTUATIONS = ("position", "torque")
+#: The integrators of :meth:`~spm_pin.dynamics.ReducedDynamics.step`.
+INTEGRATORS = ("euler", "rk4")
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsSettings:
+    """The physics of ``spm_pin/OrientDynamic-v0`` (every one has a default).
+
+    Attributes:
+        actuation: ``"position"``: the action moves the servos' goal positions;
+            ``"torque"``: the action is the motor torque over the stall torque.
+        servo: The servos' model: PD gains and torque-speed envelope (default
+            :data:`~spm_pin.dynamics.XM540_W150`).
+        physics_dt: Largest physics step [s]; the control period is cut into
+            ``ceil(control_period / physics_dt)`` equal steps. Default: 1 ms for
+            ``"position"``, 0.25 ms for ``"torque"``: at the envelope the motor's
+            back-EMF damps like ``stall_torque / no_load_speed`` (1.3 N m s/rad for the
+            XM540) on inputs of a few 1e-4 kg m^2 without armature, which the explicit
+            step resolves only below about 0.5 ms.
+        integrator: ``"euler"`` (semi-implicit) or ``"rk4"``.
+        armature: Reflected rotor inertia of each actuator [kg m^2] (>= 0).
+    """
+
+    actuation: str = "position"
+    servo: ServoModel | None = None
+    physics_dt: float | None = None
+    integrator: str = "euler"
+    armature: float = 0.0
+
+    def __post_init__(self) -> None:
+        _choice(self.actuation, "actuation", ACTUATIONS)
+        _choice(self.integrator, "integrator", INTEGRATORS)
+        if self.servo is not None and not isinstance(self.servo, ServoModel):
+            raise InputError(
+                f"servo must be a ServoModel, got {type(self.servo).__name__}",
+                argument="servo",
+                value=self.servo,
+            )
+        if self.physics_dt is not None:
+            _number(self.physics_dt, "physics_dt", 0.0, 0.1, open_low=True)
+        _number(self.armature, "armature", 0.0, 10.0)
+
+    @property
+    def the_servo(self) -> ServoModel:
+        """The servo model (the XM540-W150 when none was given)."""
+        return self.servo or XM540_W150
+
+    @property
+    def the_physics_dt(self) -> float:
+        """The largest physics step [s] (the actuation's default when none was given)."""
+        if self.physics_dt is not None:
+            return float(self.physics_dt)
+        return 1e-3 if self.actuation == "position" else 2.5e-4
+
+
+#: The option names of :class:`PhysicsSettings`.
+PHYSICS_FIELDS = frozenset(f.name for f in dataclasses.fields(PhysicsSettings))
+
+
+def physics_from(
+    physics: PhysicsSettings | None, options: dict[str, Any]
+) -> tuple[PhysicsSettings, dict[str, Any]]:
+    """(``physics`` with the :class:`PhysicsSettings` fields of ``options`` replaced,
+    the other options)."""
+    if physics is not None and not isinstance(physics, PhysicsSettings):
+        raise InputError(
+            f"physics must be PhysicsSettings, got {type(physics).__name__}",
+            argument="physics",
+            value=physics,
+        )
+    mine = {k: v for k, v in options.items() if k in PHYSICS_FIELDS}
+    rest = {k: v for k, v in options.items() if k not in PHYSICS_FIELDS}
+    base = physics or PhysicsSettings()
+    return (dataclasses.replace(base, **mine) if mine else base), rest
+
+
+class DynamicCore(OrientCore):
+    """N robots moved by the reduced dynamics under their servos (see the module).
+
+    Args:
+        settings: The options shared with ``spm_pin/Orient-v0``.
+        num: Number of robots.
+        physics: The physics.
+
+    Attributes:
+        speed: The input speeds [rad/s], (N, 3) (the real ones, not commands).
+        servo_goal: The servos' goal positions [rad], (N, 3).
+        torque: The motor torques of the last physics step [N m], (N, 3).
+        torque_speed: The input speeds [rad/s] at which ``torque`` was applied.
+        servo_load: The largest load (:meth:`~spm_pin.dynamics.ServoModel.utilisation`,
+            1 on the envelope) over the last control period, (N,).
+    """
+
+    def __init__(self, settings: OrientSettings, num: int, physics: PhysicsSettings) -> None:
+        super().__init__(settings, num)
+        self.physics = physics
+        self.servo = physics.the_servo
+        self.dynamics = ReducedDynamics(self.design, armature=physics.armature)
+        #: Physics steps per control period.
+        self.substeps = max(1, math.ceil(settings.control_period / physics.the_physics_dt - 1e-9))
+        #: The physics step [s].
+        self.dt = settings.control_period / self.substeps
+        self.servo_goal = np.zeros((num, 3))
+        self.goal_speed = np.zeros((num, 3))
+        self.torque = np.zeros((num, 3))
+        self.torque_speed = np.zeros((num, 3))
+        self.servo_load = np.zeros(num)
+
+    def reset_rows(self, rows: IntArray, rngs: list[np.random.Generator]) -> None:
+        """Start new episodes in ``rows`` at rest, each servo's goal where it stands."""
+        super().reset_rows(rows, rngs)
+        self.servo_goal[rows] = self.theta[rows]
+        self.goal_speed[rows] = 0.0
+        self.torque[rows] = 0.0
+        self.torque_speed[rows] = 0.0
+        self.servo_load[rows] = 0.0
+
+    # ---------------------------------------------------------------- servos
+    def _envelope(self, speed: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(lower, upper) torques [N m] the servos can give at ``speed``, the formula of
+        :meth:`~spm_pin.dynamics.ServoModel.torque_limits` without its input checks."""
+        stall = self.servo.stall_torque
+        slope = speed / self.servo.no_load_speed
+        return np.maximum(-stall, -stall * (1.0 + slope)), np.minimum(stall, stall * (1.0 - slope))
+
+    def _load(self, torque: FloatArray, speed: FloatArray) -> FloatArray:
+        """Largest :meth:`~spm_pin.dynamics.ServoModel.utilisation` of the three servos."""
+        tau = torque / self.servo.stall_torque
+        duty = tau + speed / self.servo.no_load_speed
+        load: FloatArray = np.maximum(np.abs(duty), np.abs(tau)).max(axis=-1)
+        return load
+
+    # ---------------------------------------------------------------- physics
+    def _advance(
+        self, theta: FloatArray, speed: FloatArray, torque: FloatArray, R: FloatArray
+    ) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
+        """One physics step of checked rows: (stepped, theta, speed, R). Rows where the
+        dynamics raise (no home-mode assembly, a singularity) are found by halving the
+        batch and come back unstepped with ``stepped`` False."""
+        n = theta.shape[0]
+        try:
+            out = self.dynamics.step(
+                theta, speed, torque, self.dt, integrator=self.physics.integrator, reference=R
+            )
+        except SPMError:
+            if n == 1:
+                return np.zeros(1, dtype=bool), theta, speed, R
+            half = n // 2
+            first = self._advance(theta[:half], speed[:half], torque[:half], R[:half])
+            second = self._advance(theta[half:], speed[half:], torque[half:], R[half:])
+            ok, th, sp, rot = (np.concatenate(pair) for pair in zip(first, second, strict=True))
+            return ok, th, sp, rot
+        return np.ones(n, dtype=bool), out.theta, out.theta_dot, out.R
+
+    def _last_safe(self, path: FloatArray, rows: IntArray, high: IntArray) -> IntArray:
+        """For each of ``rows`` (indices into the path's robots): the last physics step
+        k < high[i] whose state path[k, i] passed the safety checks, by bisection
+        (state 0, the start, is safe; state high[i] is not)."""
+        low = np.zeros(rows.size, dtype=np.intp)
+        high = high.copy()
+        while True:
+            open_ = np.flatnonzero(high - low > 1)
+            if open_.size == 0:
+                return low
+            middle = (low[open_] + high[open_]) // 2
+            ok = self.safe(path[middle, rows[open_]])
+            low[open_] = np.where(ok, middle, low[open_])
+            high[open_] = np.where(ok, high[open_], middle)
+
+    def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """One control period of ``rows`` with normalised actions (n, 3) in [-1, 1]."""
+        s = self.settings
+        servo = self.servo
+        n = rows.size
+        a = np.clip(action, -1.0, 1.0)
+        position = self.physics.actuation == "position"
+        goal_speed = self.goal_speed[rows]
+        goal_start = self.servo_goal[rows]
+        wanted = a * servo.stall_torque
+        if position:
+            goal_speed = self.command(a, goal_speed)
+        start = self.theta[rows]
+        theta = start.copy()
+        speed = self.speed[rows].copy()
+        R = self.R[rows].copy()
+        path = np.empty((self.substeps + 1, n, 3))
+        path[0] = start
+        last = np.full(n, self.substeps, dtype=np.intp)  # the last state reached
+        failed = np.zeros(n, dtype=bool)
+        torque = self.torque[rows].copy()
+        torque_speed = self.torque_speed[rows].copy()
+        load = np.zeros(n)
+        alive = np.arange(n)
+        for k in range(self.substeps):
+            th, sp = theta[alive], speed[alive]
+            lower, upper = self._envelope(sp)
+            if position:  # the goal moves at goal_speed through the period
+                goal = goal_start[alive] + goal_speed[alive] * (k * self.dt)
+                raw = servo.kp * (goal - th) + servo.kd * (goal_speed[alive] - sp)
+            else:
+                raw = wanted[alive]
+            tau = np.clip(raw, lower, upper)
+            ok, th, sp, rot = self._advance(th, sp, tau, R[alive])
+            if not np.all(ok):
+                lost = alive[~ok]
+                failed[lost] = True
+                last[lost] = k  # the dynamics could not go on from path[k]
+                alive, th, sp, rot, tau = alive[ok], th[ok], sp[ok], rot[ok], tau[ok]
+            torque[alive] = tau
+            torque_speed[alive] = speed[alive]
+            load[alive] = np.maximum(load[alive], self._load(tau, speed[alive]))
+            theta[alive] = th
+            speed[alive] = sp
+            R[alive] = rot
+            path[k + 1, alive] = th
+            if alive.size == 0:
+                break
+        safe = ~failed
+        safe[safe] = self.safe(theta[safe])
+        fraction = np.ones(n)
+        unsafe = np.zeros(n, dtype=bool)
+        bad = np.flatnonzero(~safe)
+        if bad.size:
+            if s.safety == "clip":
+                stop = self._last_safe(path, bad, last[bad])
+                theta[bad] = path[stop, bad]
+                fraction[bad] = stop / self.substeps
+            else:
+                theta[bad] = start[bad]
+                fraction[bad] = 0.0
+                unsafe[bad] = True
+            speed[bad] = 0.0
+        if position:
+            goal = goal_start + goal_speed * s.control_period
+            goal[bad] = theta[bad]  # the stop holds the servos where they stand
+            goal_speed[bad] = 0.0
+            self.servo_goal[rows] = goal
+            self.goal_speed[rows] = goal_speed
+        else:
+            self.servo_goal[rows] = theta
+        self.torque[rows] = torque
+        self.torque_speed[rows] = torque_speed
+        self.servo_load[rows] = load
+        return self.settle(rows, a, theta, speed, fraction, unsafe)
+
+    def extra_info(self, rows: IntArray) -> dict[str, npt.NDArray[np.float64]]:
+        """What the dynamic environments add to a step's info, per row: the real input
+        speeds ``theta_dot`` [rad/s], the servos' goal positions ``servo_goal`` [rad],
+        the motor torques of the last physics step ``torque`` [N m] and the speeds
+        ``torque_speed`` [rad/s] they were applied at, and the largest ``servo_load``
+        of the period (<= 1 inside the torque-speed envelope)."""
+        return {
+            "theta_dot": self.speed[rows].copy(),
+            "servo_goal": self.servo_goal[rows].copy(),
+            "torque": self.torque[rows].copy(),
+            "torque_speed": self.torque_speed[rows].copy(),
+            "servo_load": self.servo_load[rows].copy(),
+        }
