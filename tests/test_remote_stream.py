@@ -443,6 +443,28 @@ def test_timed_targets_are_checked_on_their_times_and_a_refusal_does_not_cascade
         assert _send(ws, {"type": "release"})["released"] is True
 
 
+def test_untimed_targets_go_on_after_a_refusal(
+    server: BackgroundServer, http: httpx.Client
+) -> None:
+    """Untimed goals about 100 Hz (arrival times), ramping at about 100 deg/s^2 to
+    20 deg/s; one jump is refused and the next goal, two intervals after the last
+    accepted one, is judged over both (taken as one interval, its acceleration would
+    be 0.2 deg / (0.02 s)^2 = 500 deg/s^2 > 360)."""
+    steps = [min(0.01 * (k + 1), 0.2) for k in range(40)]  # [deg] per goal
+    jump = 30
+    with _open(server) as ws:
+        assert _send(ws, {"type": "lease"})["held"] is True
+        theta, kinds = 0.0, {}
+        for k, step in enumerate(steps, start=1):
+            time.sleep(0.01)
+            theta += step
+            goal = theta + (5.0 if k == jump else 0.0)
+            kinds[k] = _send(ws, {"type": "target", "seq": k, "theta_deg": [goal, 0, 0]})["type"]
+        assert [k for k, kind in kinds.items() if kind != "ack"] == [jump], kinds
+        assert math.isclose(_joints(http)[0], theta, abs_tol=TOL["angles_deg"])
+        assert _send(ws, {"type": "release"})["released"] is True
+
+
 def test_goals_timed_ahead_of_the_clock_are_422_and_do_not_move(
     server: BackgroundServer, http: httpx.Client
 ) -> None:

@@ -18,8 +18,9 @@ event loop. States come from one :class:`StateCache`
 shared by every connection, so ten readers cost one backend read per period, not ten.
 
 The guard checks a streamed goal's speed and acceleration over the times between
-goals: their arrival times, or, when targets carry ``t`` (the goal's time on the
-client's clock), those times, which network jitter does not disturb. A client's
+goals: their arrival times (the goals taken as evenly spaced, unless goals were
+refused in between), or, when targets carry ``t`` (the goal's time on the client's
+clock), those times, which network jitter does not disturb. A client's
 times may not run ahead of the server's clock by more than :data:`CLOCK_SLACK` (plus
 :data:`CLOCK_DRIFT` of the time since its first timed goal): goals sent faster than
 their times say are answered 422. A refused goal changes nothing: the next one is
@@ -228,6 +229,8 @@ class _Session:
         self._stamp: float | None = None
         self._previous_period: float | None = None
         self._anchor: tuple[float, float] | None = None
+        self._refused_since = False  # a goal was refused since the last accepted one
+        self._previous_uneven = False  # ... and before that one was accepted
 
     @property
     def holds(self) -> bool:
@@ -278,6 +281,7 @@ class _Session:
         self._before = self._previous  # from rest
         self._commanded_at = time.monotonic()
         self._stamp = self._previous_period = self._anchor = None
+        self._refused_since = self._previous_uneven = False
         self._watchdog = asyncio.ensure_future(self._watch())
         return True
 
@@ -385,6 +389,8 @@ class _Session:
             return
         twin = self.hub.twin
         now = time.monotonic()
+        # Until this goal is accepted, it counts as refused (whatever the reason).
+        refused_before, self._refused_since = self._refused_since, True
         period = self._period(message.t, now)
         if isinstance(period, str):
             await self.send({"type": "error", "status": 422, "seq": seq, "detail": period})
@@ -400,11 +406,17 @@ class _Session:
             # kinematic twin's ``command``) is spared that work: the pushes read it.
             command = getattr(twin, "command", None) or twin.move
 
+            # Timed goals: the two intervals as the client timed them. Untimed ones
+            # are taken as evenly spaced (arrival jitter would make the intervals'
+            # speeds differ), except around a refusal: an interval that spans a
+            # refused goal is several intervals long, as measured.
+            timed = message.t is not None and self._stamp is not None
+            uneven = timed or refused_before or self._previous_uneven
             history = {
                 "previous": self._previous,
                 "before_previous": self._before,
                 "period": period,
-                "previous_period": self._previous_period,
+                "previous_period": self._previous_period if uneven else None,
             }
 
             def move() -> Any:
@@ -430,6 +442,7 @@ class _Session:
         self._before, self._previous = self._previous, np.array(theta, dtype=float)
         self._commanded_at, self._previous_period = now, period
         self._stamp = message.t
+        self._previous_uneven, self._refused_since = refused_before, False
         self.hub.states.invalidate()
         degrees = [float(x) + 0.0 for x in np.degrees(theta)]
         await self.send({"type": "ack", "seq": seq, "theta_deg": degrees})
