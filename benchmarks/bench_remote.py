@@ -114,7 +114,8 @@ def _serve(port: int) -> None:
     """The server's process: a kinematic twin served as ``spm serve`` serves it."""
     from spm_pin.remote import serve
 
-    serve(KinematicBackend(), port=port, log_level="warning")
+    with KinematicBackend(distance_process=True) as twin:
+        serve(twin, port=port, log_level="warning")
 
 
 async def _read(url: str, stop: Any, ready: list[bool]) -> dict[str, Any]:

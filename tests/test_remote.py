@@ -655,6 +655,60 @@ def test_json_has_no_nan(client: httpx.Client) -> None:
     )
 
 
+def test_a_child_process_computes_the_distances_of_a_stream(
+    robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With distance_process, a stream's exact distances come from a child process
+    (equal to check_input at the goal it was asked for); a read never waits for it.
+    Closed (or gone), the twin computes them in process again."""
+    from spm_pin.collision import check_input
+    from spm_pin.remote import kinematic
+
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 0.0)  # ask at every read
+    # A spin about the axis with a small wobble of the gaps (safe all along).
+    path = np.radians([[k, k + 2.0 * math.sin(k / 20), k] for k in range(1, 400)])
+    with KinematicBackend(robot=robot, distance_process=True) as twin:
+        worker = twin._worker
+        assert worker is not None
+        home = twin.state().min_distance
+        assert home == check_input(np.zeros(3), robot).min_distance
+        end = time.monotonic() + 60.0
+        k = 0
+        while worker.answers < 2:
+            assert time.monotonic() < end and worker.alive, "the child did not answer"
+            twin.command(path[k % len(path)])
+            twin.state()
+            k += 1
+            time.sleep(0.005)
+        answer = worker.last
+        assert answer is not None
+        _, theta, distance = answer
+        assert distance == check_input(theta, robot).min_distance
+        assert any(np.array_equal(theta, goal) for goal in path)
+        process = worker._process
+    assert not process.is_alive() and twin._worker is None
+    # In process from now on: exact at the goal.
+    twin.command(path[0])
+    assert twin.state().min_distance == check_input(path[0], robot).min_distance
+
+
+def test_a_child_process_that_dies_leaves_the_distances_in_process(
+    robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from spm_pin.collision import check_input
+    from spm_pin.remote import kinematic
+
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 0.0)
+    with KinematicBackend(robot=robot, distance_process=True) as twin:
+        worker = twin._worker
+        assert worker is not None
+        worker._process.kill()
+        worker._process.join(10)
+        goal = np.radians([3.0, 1.0, -1.0])
+        twin.command(goal)
+        assert twin.state().min_distance == check_input(goal, robot).min_distance
+
+
 def test_streamed_goals_recompute_the_distance_at_most_every_interval(
     robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
 ) -> None:

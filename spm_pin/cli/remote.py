@@ -63,7 +63,9 @@ def _twin(args: argparse.Namespace, design: Any, stack: contextlib.ExitStack) ->
             raise _UsageError("--config is the servos' configuration: give --device too")
         if args.sim == "dynamic":
             return stack.enter_context(DynamicBackend(design))
-        return KinematicBackend(design)
+        # A stream's exact distances in a child process: the event loop is not
+        # stalled by them.
+        return stack.enter_context(KinematicBackend(design, distance_process=True))
     from ..collision import build_robot
     from ..hardware.config import HardwareConfig
     from ..hardware.driver import ServoBus

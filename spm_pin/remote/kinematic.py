@@ -9,7 +9,6 @@ distance, is computed on a robot of its own and, while goals stream in, at most 
 from __future__ import annotations
 
 import dataclasses
-import math
 import threading
 import time
 from typing import TYPE_CHECKING
@@ -17,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from ._distance import DistanceWorker, exact_min_distance
 from .backend import FloatArray, GuardedTwin, LinkPair, TwinState, _goal_arguments, _theta
 
 if TYPE_CHECKING:
@@ -51,12 +51,20 @@ class KinematicBackend(GuardedTwin):
             :class:`~spm_pin.hardware.config.SafetyLimits`).
         theta: The starting input angles [rad] (default: home, [0, 0, 0]); must be
             safe.
+        distance_process: While goals stream in, compute the exact distances in a
+            child process (:class:`~spm_pin.remote._distance.DistanceWorker`, what
+            ``spm serve`` does): they hold the interpreter lock for about 12 ms,
+            which would stall a server's event loop. A read then gives the last
+            distance computed while the child computes the next (its age: at most
+            :data:`DISTANCE_INTERVAL` plus one computation). Stop the child with
+            :meth:`close` (or use the twin as a context manager).
 
     Attributes:
         name: ``"kinematic"``.
         design: The design of the robot.
         robot: The robot model.
         guard: The safety guard every goal passes.
+        distance_process: Whether a child process computes the distances of a stream.
     """
 
     name = "kinematic"
@@ -68,10 +76,16 @@ class KinematicBackend(GuardedTwin):
         robot: SPMRobot | None = None,
         limits: SafetyLimits | None = None,
         theta: npt.ArrayLike | None = None,
+        distance_process: bool = False,
     ) -> None:
         super().__init__(design, robot=robot, limits=limits)
         start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
         report = self._report(start).require()
+        self.distance_process = bool(distance_process)
+        # Started now: a spawned process takes a while to start.
+        self._worker: DistanceWorker | None = (
+            DistanceWorker(self.design) if self.distance_process else None
+        )
         self._theta: FloatArray = start
         self._state: TwinState | None = self._compute_state(start, report.min_distance)
         # The exact distances: a robot of their own (built at the first read after
@@ -79,7 +93,11 @@ class KinematicBackend(GuardedTwin):
         # the search of the next minimum.
         self._distance_lock = threading.Lock()
         self._streaming = False  # the last goal came by command() (a stream)
-        self._last_distance: tuple[float, float] | None = None  # (monotonic time, m)
+        # (monotonic time, m): the last exact distance. With a child process, the
+        # one at the start stands until the child's first answer.
+        self._last_distance: tuple[float, float] | None = (
+            (time.monotonic(), report.min_distance) if self._worker is not None else None
+        )
         self._distance_robot: SPMRobot | None = None
         self._nearest: LinkPair | None = None
 
@@ -88,27 +106,48 @@ class KinematicBackend(GuardedTwin):
         mode, every checked pair, as :func:`~spm_pin.collision.check_input`).
 
         Computed on a robot of its own (under its own lock), so that the twin's lock
-        is not held meanwhile and goals keep being accepted. The distance of the pair
-        nearest last time bounds the minimum from above; with it as the cap, the
-        other pairs stop as soon as they cannot be nearer.
+        is not held meanwhile and goals keep being accepted.
         """
         from ..collision import build_robot
-        from ..collision.checker import checker_of
 
         with self._distance_lock:
             if self._distance_robot is None:
                 self._distance_robot = build_robot(self.design)
-            robot = self._distance_robot
-            checker = checker_of(robot)
-            q = robot.configuration(theta)
-            nearest = self._nearest
-            if nearest is not None:
-                cap = checker.distances(q, pairs=[nearest])[nearest]
-                if math.isfinite(cap) and cap > 0.0:
-                    return float(checker.clearances(q[None], include_fixed=True, cap=cap)[0])
-            distances = checker.distances(q)
-            self._nearest = min(distances, key=distances.__getitem__)
-            return float(distances[self._nearest])
+            distance, self._nearest = exact_min_distance(self._distance_robot, theta, self._nearest)
+            return distance
+
+    def _worker_takes(self, theta: FloatArray) -> bool:
+        """Whether the child process computes the distance at ``theta`` (asked now,
+        or a request under way); False without one (or before it is ready)."""
+        if not self.distance_process:
+            return False
+        with self._distance_lock:
+            if self._worker is None:
+                self._worker = DistanceWorker(self.design)
+            worker = self._worker
+        return worker.request(theta)
+
+    def _worker_answer(self) -> None:
+        """Take the child's newest distance, when newer than the last one."""
+        worker = self._worker
+        answer = None if worker is None else worker.latest()
+        recent = self._last_distance
+        if answer is not None and (recent is None or answer[0] > recent[0]):
+            self._last_distance = (answer[0], answer[2])
+
+    def close(self) -> None:
+        """Stop the child process of the distances, if any (the twin stays usable:
+        it computes them in process from then on)."""
+        self.distance_process = False
+        worker, self._worker = self._worker, None
+        if worker is not None:
+            worker.close()
+
+    def __enter__(self) -> KinematicBackend:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def state(self) -> TwinState:
         """The current state (its ``time`` is now); computed at the first read after
@@ -129,9 +168,17 @@ class KinematicBackend(GuardedTwin):
             if self._state is not None and self._theta is theta:
                 return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
         now = time.monotonic()
+        if self._streaming:
+            self._worker_answer()
         recent = self._last_distance
-        if self._streaming and recent is not None and now - recent[0] < DISTANCE_INTERVAL:
-            min_distance = recent[1]  # goals streaming in: at most DISTANCE_INTERVAL old
+        if (
+            self._streaming
+            and recent is not None
+            and (now - recent[0] < DISTANCE_INTERVAL or self._worker_takes(theta))
+        ):
+            # Goals streaming in: at most DISTANCE_INTERVAL old, or the child
+            # process computes the next one meanwhile.
+            min_distance = recent[1]
         else:
             min_distance = self._min_distance(theta)
             self._last_distance = (time.monotonic(), min_distance)  # its age counts from now
