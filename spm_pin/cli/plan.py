@@ -101,14 +101,27 @@ def plan_record(args: argparse.Namespace) -> Record:
         min_dexterity=args.min_dexterity,
         min_singularity_margin=limits.min_singularity_margin,
     )
-    safe = safe_set_of(_design(args), settings)
+    design = _design(args)
     cells_read = 0
-    if args.cells is not None and Path(args.cells).exists():
-        safe.cover.load(args.cells)
-        cells_read = safe.cover.known_cells
-    path = plan(
-        _end(args, "from"), _end(args, "to"), settings=settings, turns=args.turns, safe=safe
-    )
+    if design.is_coaxial:
+        safe: Any = safe_set_of(design, settings)
+        if args.cells is not None and Path(args.cells).exists():
+            safe.cover.load(args.cells)
+            cells_read = safe.cover.known_cells
+        path = plan(
+            _end(args, "from"), _end(args, "to"), settings=settings, turns=args.turns, safe=safe
+        )
+    else:  # planned in the 3-D input space
+        for value, flag in ((args.cells, "--cells"), (args.png, "--png")):
+            if value is not None:
+                raise _UsageError(
+                    f"{flag} is about the gap plane of coaxial designs; {design.name!r} is "
+                    "not coaxial"
+                )
+        path = plan(
+            _end(args, "from"), _end(args, "to"), design, settings=settings, turns=args.turns
+        )
+        safe = path.safe
     try:
         trajectory = path.timed(limits)
     except ImportError as exc:

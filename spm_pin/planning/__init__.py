@@ -1,4 +1,5 @@
-"""Safe motion planning of coaxial SPMs (:func:`plan`, ``spm plan``).
+"""Safe motion planning of SPMs (:func:`plan`, ``spm plan``): coaxial designs in
+their gap plane with a free yaw, other designs in their 3-D input space.
 
 * :class:`SafeSet`: the safe set in the gap plane (home assembly mode, singularity
   margin, dexterity, clearance margin: the static checks of the servos' guard), with
@@ -6,6 +7,9 @@
   (:mod:`spm_pin.planning.safe_set`).
 * :class:`SafeCover`: cells of the gap plane certified safe at every point, a
   quadtree grown as paths cross it (:mod:`spm_pin.planning.cover`).
+* :class:`InputSafeSet`, :func:`plan_inputs`: the same checks and certificate in the
+  3-D input space of a design that is not coaxial (the Agile Eye), searched with
+  OMPL where the straight line is not safe (:mod:`spm_pin.planning.input_space`).
 * :func:`plan`: a safe, near-shortest path between input angles or orientations,
   the mechanism turned the shortest way about its axis (or whole turns more)
   (:mod:`spm_pin.planning.planner`).
@@ -19,6 +23,7 @@
 from __future__ import annotations
 
 from .cover import SafeCover
+from .input_space import InputSafeSet, plan_inputs
 from .planner import PlannedPath, gap_length, plan
 from .plots import path_figure, save_path_figure
 from .safe_set import (
@@ -43,6 +48,7 @@ __all__ = [
     "LIPSCHITZ_FACTOR",
     "YAW_TOLERANCE_M",
     "Evaluation",
+    "InputSafeSet",
     "Lipschitz",
     "MotionLimits",
     "PlanSettings",
@@ -55,6 +61,7 @@ __all__ = [
     "gap_length",
     "path_figure",
     "plan",
+    "plan_inputs",
     "safe_set_of",
     "save_path_figure",
     "time_path",

@@ -23,7 +23,7 @@ import heapq
 import itertools
 import math
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -34,6 +34,9 @@ from ..errors import InputError, PlanningError
 from ..kinematics import forward_kinematics, inverse_kinematics
 from ..rotations import rpy_from_matrix
 from .safe_set import PlanSettings, SafeSet, safe_set_of
+
+if TYPE_CHECKING:
+    from .input_space import InputSafeSet
 from .timing import MotionLimits, Trajectory, time_path
 
 __all__ = ["PlannedPath", "gap_length", "plan"]
@@ -61,7 +64,8 @@ class PlannedPath:
         length_deg: Its length in input space [deg] (Euclidean).
         straight_length_deg: Length of the straight line from start to goal [deg].
         grid_length_deg: Length of the grid search's path in input space [deg] (the
-            same as ``length_deg`` when the straight line was safe).
+            same as ``length_deg`` when the straight line was safe; for a design that
+            is not coaxial, the length of OMPL's path before its simplification).
         samples: Samples checked to certify it.
         min_singularity_margin: Smallest singularity margin at the samples.
         min_dexterity: Smallest dexterity at the samples.
@@ -82,7 +86,7 @@ class PlannedPath:
     turns: int
     planning_time_ms: float
     settings: PlanSettings
-    safe: SafeSet | None = dataclasses.field(default=None, repr=False, compare=False)
+    safe: SafeSet | InputSafeSet | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
     def start(self) -> FloatArray:
@@ -101,7 +105,7 @@ class PlannedPath:
         limits: MotionLimits | None = None,
         *,
         smooth: bool = True,
-        safe: SafeSet | None = None,
+        safe: SafeSet | InputSafeSet | None = None,
     ) -> Trajectory:
         """The fastest motion along this path under joint speed and acceleration
         limits, from rest to rest (:func:`~spm_pin.planning.timing.time_path`; needs
@@ -277,10 +281,13 @@ def plan(
         start: Input angles (3,) [rad], or a platform rotation (3, 3).
         goal: Input angles (3,) [rad], or a platform rotation (3, 3): solved in the
             home working mode, the mechanism turned the shortest way (plus ``turns``).
-        design: A coaxial SPM (default: the prototype).
+        design: The SPM (default: the prototype). A design that is not coaxial (the
+            Agile Eye) is planned in its 3-D input space
+            (:func:`~spm_pin.planning.input_space.plan_inputs`: OMPL's RRTConnect
+            where the straight line is not safe, the same continuity certificate).
         settings: The thresholds (default: the servos' guard's).
         turns: Whole turns about the axis added to the shortest one (orientation
-            goals only; the platform can spin endlessly).
+            goals of coaxial designs only; the platform can spin endlessly).
         safe: The safe set to plan in (default: built once per design and settings).
 
     Returns:
@@ -293,6 +300,8 @@ def plan(
     """
     if isinstance(turns, bool) or not isinstance(turns, int | np.integer):
         raise InputError(f"turns must be a whole number, got {turns!r}", argument="turns")
+    if safe is None and design is not None and not design.is_coaxial:
+        return _plan_inputs(start, goal, design, settings, int(turns))
     if safe is None:
         safe = safe_set_of(design or SPMDesign.prototype(), settings or PlanSettings())
     begin = time.perf_counter()
@@ -318,6 +327,68 @@ def plan(
         settings=safe.settings,
         safe=safe,
     )
+
+
+def _plan_inputs(
+    start: npt.ArrayLike,
+    goal: npt.ArrayLike,
+    design: SPMDesign,
+    settings: PlanSettings | None,
+    turns: int,
+) -> PlannedPath:
+    """:func:`plan` for a design that is not coaxial: in its 3-D input space."""
+    from .input_space import plan_inputs
+
+    if turns:
+        raise InputError(
+            f"turns: {design.name!r} is not coaxial, its platform cannot spin endlessly",
+            argument="turns",
+            value=turns,
+        )
+    ends = [_input_end(value, name, design) for value, name in ((start, "start"), (goal, "goal"))]
+    path, facts = plan_inputs(ends[0], ends[1], design, settings=settings)
+    evaluation_settings = facts["safe"].settings
+    return PlannedPath(
+        theta=path,
+        length_deg=_length_deg(path),
+        straight_length_deg=facts["straight_length_deg"],
+        grid_length_deg=facts["raw_length_deg"],
+        samples=facts["samples"],
+        min_singularity_margin=facts["min_singularity_margin"],
+        min_dexterity=facts["min_dexterity"],
+        turns=0,
+        planning_time_ms=facts["planning_time_ms"],
+        settings=evaluation_settings,
+        safe=facts["safe"],
+    )
+
+
+def _input_end(value: Any, name: str, design: SPMDesign) -> FloatArray:
+    """Input angles of an end point of a design that is not coaxial: theta (3,) as
+    given, or a rotation (3, 3) solved in the home working mode."""
+    array = np.asarray(value, dtype=float) if not isinstance(value, str) else np.empty(0)
+    if array.shape == (3,):
+        if not np.all(np.isfinite(array)):
+            raise InputError(f"{name} must be finite angles [rad], got {value!r}", argument=name)
+        result: FloatArray = array.copy()
+        return result
+    if array.shape != (3, 3):
+        raise InputError(
+            f"{name} must be input angles (3,) [rad] or a rotation matrix (3, 3), got "
+            f"shape {array.shape}",
+            argument=name,
+            value=value,
+        )
+    ik = inverse_kinematics(as_rotation(array, name)[None], design)
+    legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
+    if legs:
+        raise PlanningError(
+            f"the {name} orientation is out of reach: leg(s) {legs} cannot close",
+            reasons=(f"leg(s) {legs} cannot close",),
+            check=name,
+        )
+    solved: FloatArray = np.asarray(ik.theta[0], dtype=float)
+    return solved
 
 
 def _with_yaw(safe: SafeSet, d12: FloatArray, d23: FloatArray, y0: float, y1: float) -> FloatArray:

@@ -33,7 +33,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -241,20 +243,12 @@ class SafeSet:
             if not np.any(both):
                 continue
             step = h * math.hypot(di, dj)
-            dq = np.abs(np.angle(np.exp(1j * (qgrid[b] - qgrid[a]))))[both]  # (m, 9)
-            legs = dq.reshape(-1, 3, 3)  # (u, w, v) per leg
-            distal = legs[:, :, 0] + legs[:, :, 1]
-            platform = legs.sum(axis=2).min(axis=1)
-            chain = np.maximum(distal.max(axis=1), platform)
+            chain = chain_change(qgrid[a][both], qgrid[b][both])
             worst["joint"] = max(worst["joint"], float(chain.max()) / step)
             for name in ("sing", "dex"):
                 diff = np.abs(grids[name][b] - grids[name][a])[both]
                 worst[name] = max(worst[name], float(np.nanmax(diff)) / step)
-        r_max = max(  # the base does not move: its own size does not count
-            float(np.linalg.norm(piece.vertices, axis=1).max())
-            for piece in self.checker.pieces
-            if piece.link != "base"
-        )
+        r_max = moving_radius(self.checker)
         joint = LIPSCHITZ_FACTOR * worst["joint"]
         return Lipschitz(
             clearance=2.0 * r_max * joint,
@@ -274,36 +268,17 @@ class SafeSet:
         want: float,
     ) -> Evaluation:
         """The checks, and each sample's certified radius up to ``want`` [deg]."""
-        s = self.settings
-        lip = self.lipschitz
-        n = theta.shape[0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r_s = (np.nan_to_num(sing, nan=-1.0) - s.min_singularity_margin) / lip.singularity
-            r_d = (np.nan_to_num(dex, nan=-1.0) - s.min_dexterity) / lip.dexterity
-        radius = np.minimum(np.minimum(r_s, r_d), want)
-        radius[~reachable] = -1.0
-        colliding = np.zeros(n, dtype=bool)
-        if self.checker.fixed_clearance < s.margin:  # parts that never move are too near
-            colliding[:] = True
-            radius[:] = -1.0
-        base = s.margin + YAW_TOLERANCE_M
-        # A fixed ladder of radii (each margin's collision plan is built once).
-        top = 0.5 * s.check_step_deg
-        levels = [top / 2.0**k for k in range(LADDER_STEPS)] + [0.0]
-        for k in np.flatnonzero(radius >= 0.0):
-            # The largest level the clearance covers (the parts whose distance never
-            # changes, checked above, need none).
-            for level in levels:
-                if level > radius[k]:
-                    continue
-                margin = base + lip.clearance * level
-                if not self.checker.collisions(q[k], margin=margin, include_fixed=False):
-                    radius[k] = level
-                    break
-            else:
-                colliding[k] = True
-                radius[k] = -1.0
-        return Evaluation(reachable, sing, dex, colliding, radius >= 0.0, radius)
+        return evaluate_with_radius(
+            self.checker,
+            self.settings,
+            self.lipschitz,
+            reachable,
+            sing,
+            dex,
+            q,
+            want,
+            extra_margin=YAW_TOLERANCE_M,
+        )
 
     def evaluate(self, theta: npt.ArrayLike, *, want: float = 0.0) -> Evaluation:
         """The checks at input angles (n, 3) [rad]; ``radius``: the gap distance
@@ -354,30 +329,9 @@ class SafeSet:
 
     def certify_samples(self, theta: npt.ArrayLike) -> tuple[bool, int, Evaluation]:
         """:meth:`certify` by the path's own samples alone (no cells)."""
-        samples = self.densify(theta)
-        want = 0.5 * self.settings.check_step_deg
-        evaluation = self.evaluate(samples, want=want)
-        for _ in range(MAX_REFINEMENTS):
-            bad = np.flatnonzero(~evaluation.safe)
-            if bad.size:
-                return False, int(bad[0]), evaluation
-            steps = self._gap_steps(samples)
-            short = evaluation.radius[:-1] + evaluation.radius[1:] < steps - 1e-12
-            if not np.any(short):
-                return True, -1, evaluation
-            at = np.flatnonzero(short)
-            middle = 0.5 * (samples[at] + samples[at + 1])
-            extra = self.evaluate(middle, want=float(0.5 * steps[at].max()))
-            samples = np.insert(samples, at + 1, middle, axis=0)
-            evaluation = Evaluation(
-                *(
-                    np.insert(getattr(evaluation, f.name), at + 1, getattr(extra, f.name))
-                    for f in dataclasses.fields(Evaluation)
-                )
-            )
-        steps = self._gap_steps(samples)
-        gaps = np.flatnonzero(evaluation.radius[:-1] + evaluation.radius[1:] < steps - 1e-12)
-        return False, int(gaps[0]), evaluation
+        return certify_polyline(
+            self.densify(theta), self.evaluate, self._gap_steps, self.settings.check_step_deg
+        )
 
     def densify(self, theta: npt.ArrayLike) -> FloatArray:
         """The polyline (n, 3) [rad] sampled at most ``check_step_deg`` of gap motion
@@ -391,6 +345,113 @@ class SafeSet:
             rows.append(path[k - 1] + t * (path[k] - path[k - 1]))
         result: FloatArray = np.vstack(rows)
         return result
+
+
+def chain_change(qa: FloatArray, qb: FloatArray) -> FloatArray:
+    """The largest joint-angle change along a link's kinematic chain [rad] between
+    configurations (m, 9) ``qa`` and ``qb`` (per leg: proximal u, distal w, platform
+    v): a distal link turns by at most the change of u plus w, the platform by at
+    most the smallest change along a whole leg. (m,)."""
+    dq = np.abs(np.angle(np.exp(1j * (qb - qa))))  # (m, 9)
+    legs = dq.reshape(-1, 3, 3)  # (u, w, v) per leg
+    distal = legs[:, :, 0] + legs[:, :, 1]
+    platform = legs.sum(axis=2).min(axis=1)
+    chain: FloatArray = np.maximum(distal.max(axis=1), platform)
+    return chain
+
+
+def moving_radius(checker: Any) -> float:
+    """The largest distance from O of the moving links' collision geometry [m] (the
+    base does not move: its own size does not count)."""
+    return max(
+        float(np.linalg.norm(piece.vertices, axis=1).max())
+        for piece in checker.pieces
+        if piece.link != "base"
+    )
+
+
+def evaluate_with_radius(
+    checker: Any,
+    s: PlanSettings,
+    lip: Lipschitz,
+    reachable: BoolArray,
+    sing: FloatArray,
+    dex: FloatArray,
+    q: FloatArray,
+    want: float,
+    *,
+    extra_margin: float = 0.0,
+) -> Evaluation:
+    """The checks of samples (their configurations ``q`` (n, nq)), and each sample's
+    radius [deg of the planning coordinates], up to ``want``, within which every check
+    is certified by the Lipschitz bounds ``lip`` (negative where the sample fails).
+    ``extra_margin`` [m] is added to the clearance margin."""
+    n = reachable.shape[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_s = (np.nan_to_num(sing, nan=-1.0) - s.min_singularity_margin) / lip.singularity
+        r_d = (np.nan_to_num(dex, nan=-1.0) - s.min_dexterity) / lip.dexterity
+    radius = np.minimum(np.minimum(r_s, r_d), want)
+    radius[~reachable] = -1.0
+    colliding = np.zeros(n, dtype=bool)
+    if checker.fixed_clearance < s.margin:  # parts that never move are too near
+        colliding[:] = True
+        radius[:] = -1.0
+    base = s.margin + extra_margin
+    # A fixed ladder of radii (each margin's collision plan is built once).
+    top = 0.5 * s.check_step_deg
+    levels = [top / 2.0**k for k in range(LADDER_STEPS)] + [0.0]
+    for k in np.flatnonzero(radius >= 0.0):
+        # The largest level the clearance covers (the parts whose distance never
+        # changes, checked above, need none).
+        for level in levels:
+            if level > radius[k]:
+                continue
+            margin = base + lip.clearance * level
+            if not checker.collisions(q[k], margin=margin, include_fixed=False):
+                radius[k] = level
+                break
+        else:
+            colliding[k] = True
+            radius[k] = -1.0
+    return Evaluation(reachable, sing, dex, colliding, radius >= 0.0, radius)
+
+
+def certify_polyline(
+    samples: FloatArray,
+    evaluate: Callable[..., Evaluation],
+    steps_of: Callable[[FloatArray], FloatArray],
+    check_step: float,
+) -> tuple[bool, int, Evaluation]:
+    """Certify a densified polyline (n, 3) [rad] (see :meth:`SafeSet.certify`):
+    ``evaluate(samples, want=...)`` checks samples, ``steps_of(samples)`` gives the
+    distances between consecutive ones in the planning coordinates [deg].
+
+    Returns:
+        (safe, index of the first sample that failed or -1, the evaluation).
+    """
+    want = 0.5 * check_step
+    evaluation = evaluate(samples, want=want)
+    for _ in range(MAX_REFINEMENTS):
+        bad = np.flatnonzero(~evaluation.safe)
+        if bad.size:
+            return False, int(bad[0]), evaluation
+        steps = steps_of(samples)
+        short = evaluation.radius[:-1] + evaluation.radius[1:] < steps - 1e-12
+        if not np.any(short):
+            return True, -1, evaluation
+        at = np.flatnonzero(short)
+        middle = 0.5 * (samples[at] + samples[at + 1])
+        extra = evaluate(middle, want=float(0.5 * steps[at].max()))
+        samples = np.insert(samples, at + 1, middle, axis=0)
+        evaluation = Evaluation(
+            *(
+                np.insert(getattr(evaluation, f.name), at + 1, getattr(extra, f.name))
+                for f in dataclasses.fields(Evaluation)
+            )
+        )
+    steps = steps_of(samples)
+    gaps = np.flatnonzero(evaluation.radius[:-1] + evaluation.radius[1:] < steps - 1e-12)
+    return False, int(gaps[0]), evaluation
 
 
 @lru_cache(maxsize=4)

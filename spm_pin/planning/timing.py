@@ -40,6 +40,7 @@ import numpy.typing as npt
 from ..errors import InputError, PlanningError
 
 if TYPE_CHECKING:
+    from .input_space import InputSafeSet
     from .safe_set import SafeSet
 
 __all__ = [
@@ -183,7 +184,11 @@ def _trapezoid(theta: FloatArray, speed: FloatArray, acceleration: FloatArray) -
 
 
 def certify_curve(
-    safe: SafeSet, curve: Any, knots: npt.ArrayLike, *, max_refinements: int = MAX_REFINEMENTS
+    safe: SafeSet | InputSafeSet,
+    curve: Any,
+    knots: npt.ArrayLike,
+    *,
+    max_refinements: int = MAX_REFINEMENTS,
 ) -> tuple[bool, int]:
     """Certify a piecewise-cubic curve of input angles as a continuous safe path.
 
@@ -210,9 +215,12 @@ def certify_curve(
     breaks = np.asarray(knots, dtype=float)
     step = safe.settings.check_step_deg
     want = 0.5 * step
+    # Degrees of the safe set's coordinates per radian of input: the gaps, or (a
+    # safe set of the 3-D input space) the inputs themselves.
+    rate = _GAP_RATE if getattr(safe, "coordinates", "gaps") == "gaps" else np.degrees(np.eye(3))
 
     def gap_norm(s: FloatArray, order: int) -> FloatArray:
-        rates = np.asarray(curve(s, order), dtype=float).reshape(-1, 3) @ _GAP_RATE.T
+        rates = np.asarray(curve(s, order), dtype=float).reshape(-1, 3) @ rate.T
         result: FloatArray = np.linalg.norm(rates, axis=1)
         return result
 
@@ -428,7 +436,7 @@ def time_path(
     theta: npt.ArrayLike,
     limits: MotionLimits | None = None,
     *,
-    safe: SafeSet | None = None,
+    safe: SafeSet | InputSafeSet | None = None,
     smooth: bool = True,
 ) -> Trajectory:
     """The fastest motion along a planned path under joint speed and acceleration

@@ -1,0 +1,343 @@
+"""Safe paths of a general (non-coaxial) SPM in its 3-D input space.
+
+A coaxial SPM plans in its 2-D gap plane with a free yaw (:mod:`.safe_set`); a
+general design, such as the Agile Eye, has no such symmetry: every input angle
+changes what the mechanism looks like, so its safe set is a region of the 3-D input
+space. :class:`InputSafeSet` checks input angles with the same static checks (the
+home assembly mode, the singularity margin, the dexterity, the clearance of the real
+link shapes) and certifies a polyline as a continuous path the same way as the gap
+plane does, in input-space degrees (Euclidean):
+
+* every point of every link moves, per degree of input motion, at most
+  ``r_max * Lq`` metres (``Lq`` bounds the joint-angle change along a link's chain);
+* the singularity margin and the dexterity change by at most ``Ls`` and ``Ld`` per
+  degree.
+
+``Lq``, ``Ls`` and ``Ld`` are measured at random pairs of inputs 0.5 degree apart
+in the planning box (both ends reachable, at least half the singularity threshold)
+and multiplied by :data:`~spm_pin.planning.safe_set.LIPSCHITZ_FACTOR`: an estimate
+from samples, as the gap plane's is from its grid. Samples of a path at most
+``check_step_deg`` apart, each certified safe within a radius (its slack over the
+bound), cover the way between them when their radii add up to their distance.
+
+:func:`plan_inputs` searches with OMPL's RRTConnect (``pip install ompl``, in the
+``planning`` extra), shortens the path with OMPL's simplifier, and returns it only
+once the certificate holds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..design import SPMDesign
+from ..errors import InputError, PlanningError
+from ..kinematics import forward_kinematics, jacobian
+from ..model.robot import SPMRobot
+from ._evaluation import Evaluation
+from .safe_set import (
+    LIPSCHITZ_FACTOR,
+    Lipschitz,
+    PlanSettings,
+    certify_polyline,
+    chain_change,
+    evaluate_with_radius,
+    moving_radius,
+)
+
+__all__ = ["DEFAULT_HALF_WIDTH_DEG", "InputSafeSet", "plan_inputs"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Half width of the default planning box about the start and goal [deg].
+DEFAULT_HALF_WIDTH_DEG = 60.0
+#: Random pairs measured for the Lipschitz bounds, and their distance [deg].
+LIPSCHITZ_PAIRS = 3000
+LIPSCHITZ_STEP_DEG = 0.5
+#: Seconds OMPL may search, and attempts before giving up.
+SEARCH_SECONDS = 5.0
+ATTEMPTS = 3
+
+
+class InputSafeSet:
+    """The safe set of any SPM in a box of its 3-D input space (see the module).
+
+    Args:
+        design: The SPM (default: the Agile Eye).
+        settings: The thresholds and the check step (``grid_step_deg`` unused).
+        low, high: The planning box [rad], (3,) each.
+        robot: The robot with its collision checker (default: built).
+        seed: Seed of the random pairs the Lipschitz bounds are measured at.
+
+    Attributes:
+        design, settings, robot, checker: As given or built.
+        low, high: The box [rad].
+        lipschitz: The continuity bounds, per degree of input motion.
+        coordinates: ``"inputs"``: radii and steps are degrees of input motion.
+        build_time_s: Seconds spent measuring the bounds.
+    """
+
+    coordinates = "inputs"
+
+    def __init__(
+        self,
+        design: SPMDesign | None = None,
+        settings: PlanSettings | None = None,
+        *,
+        low: npt.ArrayLike,
+        high: npt.ArrayLike,
+        robot: SPMRobot | None = None,
+        seed: int = 0,
+    ) -> None:
+        from ..collision import build_robot, checker_of
+
+        if robot is None:
+            robot = build_robot(design or SPMDesign.agile_eye())
+        self.design = robot.design
+        self.robot = robot
+        self.checker = checker_of(robot)
+        self.settings = settings or PlanSettings()
+        self.low = np.asarray(low, dtype=float).reshape(3)
+        self.high = np.asarray(high, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(self.low)) and np.all(self.high > self.low)):
+            raise InputError(
+                f"the planning box needs finite low < high, got {self.low} and {self.high}",
+                argument="box",
+            )
+        start = time.perf_counter()
+        self.lipschitz = self._measure(np.random.default_rng(seed))
+        self.build_time_s = time.perf_counter() - start
+
+    # ---------------------------------------------------------------- checks
+    def _kinematics(self, theta: FloatArray) -> tuple[Any, Any, Any, FloatArray]:
+        fk = forward_kinematics(theta, self.design)
+        reachable = np.asarray(fk.reachable, dtype=bool)
+        R = np.where(reachable[:, None, None], fk.R, np.eye(3))
+        jac = jacobian(theta, self.design, R=R)
+        sing = np.where(reachable, jac.singularity_margin, np.nan)
+        dex = np.where(reachable, jac.dexterity, np.nan)
+        q = np.zeros((theta.shape[0], self.robot.model.nq))
+        if np.any(reachable):
+            q[reachable] = self.robot._configuration_from_rotation(theta[reachable], R[reachable])
+        return reachable, sing, dex, q
+
+    def _measure(self, rng: np.random.Generator) -> Lipschitz:
+        """Lipschitz bounds from random pairs of inputs LIPSCHITZ_STEP_DEG apart."""
+        a = rng.uniform(self.low, self.high, size=(LIPSCHITZ_PAIRS, 3))
+        direction = rng.normal(size=(LIPSCHITZ_PAIRS, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        b = a + math.radians(LIPSCHITZ_STEP_DEG) * direction
+        ra, sa, da, qa = self._kinematics(a)
+        rb, sb, db, qb = self._kinematics(b)
+        half = 0.5 * self.settings.min_singularity_margin
+        both = ra & rb & (sa >= half) & (sb >= half)
+        if not np.any(both):
+            raise PlanningError(
+                f"no reachable inputs in the planning box of {self.design.name!r}: "
+                "nothing to plan in"
+            )
+        step = LIPSCHITZ_STEP_DEG
+        joint = LIPSCHITZ_FACTOR * float(chain_change(qa[both], qb[both]).max()) / step
+        r_max = moving_radius(self.checker)
+        return Lipschitz(
+            clearance=2.0 * r_max * joint,
+            singularity=LIPSCHITZ_FACTOR * float(np.max(np.abs(sb - sa)[both])) / step,
+            dexterity=LIPSCHITZ_FACTOR * float(np.max(np.abs(db - da)[both])) / step,
+            joint=joint,
+            r_max=r_max,
+        )
+
+    def evaluate(self, theta: npt.ArrayLike, *, want: float = 0.0) -> Evaluation:
+        """The checks at input angles (n, 3) [rad], each sample's certified radius
+        [deg of input motion] up to ``want`` (negative where it fails)."""
+        angles = np.asarray(theta, dtype=float).reshape(-1, 3)
+        reachable, sing, dex, q = self._kinematics(angles)
+        inside = np.all((angles >= self.low) & (angles <= self.high), axis=1)
+        evaluation = evaluate_with_radius(
+            self.checker, self.settings, self.lipschitz, reachable & inside, sing, dex, q, want
+        )
+        return evaluation
+
+    @staticmethod
+    def steps(theta: FloatArray) -> FloatArray:
+        """Euclidean distance [deg] between consecutive rows of theta (n, 3)."""
+        result: FloatArray = np.degrees(np.linalg.norm(np.diff(theta, axis=0), axis=1))
+        return result
+
+    def densify(self, theta: npt.ArrayLike) -> FloatArray:
+        """The polyline (n, 3) [rad] sampled at most ``check_step_deg`` apart."""
+        path = np.asarray(theta, dtype=float).reshape(-1, 3)
+        steps = self.steps(path)
+        rows = [path[:1]]
+        for k in range(1, path.shape[0]):
+            parts = max(1, math.ceil(steps[k - 1] / self.settings.check_step_deg))
+            t = np.arange(1, parts + 1)[:, None] / parts
+            rows.append(path[k - 1] + t * (path[k] - path[k - 1]))
+        result: FloatArray = np.vstack(rows)
+        return result
+
+    def certify(self, theta: npt.ArrayLike) -> tuple[bool, int, Evaluation]:
+        """Check a polyline of input angles (n, 3) [rad] as a continuous path.
+
+        Returns:
+            (safe, index of the first sample that failed or -1, the evaluation).
+        """
+        return certify_polyline(
+            self.densify(theta), self.evaluate, self.steps, self.settings.check_step_deg
+        )
+
+
+def _length_deg(theta: FloatArray) -> float:
+    return float(np.sum(InputSafeSet.steps(theta)))
+
+
+def plan_inputs(
+    theta0: npt.ArrayLike,
+    theta1: npt.ArrayLike,
+    design: SPMDesign | None = None,
+    *,
+    settings: PlanSettings | None = None,
+    safe: InputSafeSet | None = None,
+    seed: int = 0,
+) -> tuple[FloatArray, dict[str, Any]]:
+    """A certified safe path between input angles in the 3-D input space.
+
+    The straight line when it is certified; else OMPL's RRTConnect in the planning
+    box (the start and goal's box widened by :data:`DEFAULT_HALF_WIDTH_DEG`), its
+    path simplified by OMPL and certified (up to :data:`ATTEMPTS` searches).
+
+    Args:
+        theta0, theta1: Start and goal input angles [rad], (3,) each.
+        design: The SPM (default: the Agile Eye); ignored when ``safe`` is given.
+        settings: The thresholds (default :class:`PlanSettings`).
+        safe: The safe set to plan in (default: built for the start and goal).
+        seed: OMPL's random seed (set once per process, at its first search).
+
+    Returns:
+        (path (n, 3) [rad], facts: ``straight_length_deg``, ``raw_length_deg`` (the
+        search's path before simplification), ``samples``, ``min_singularity_margin``,
+        ``min_dexterity``, ``planning_time_ms``, ``safe``).
+
+    Raises:
+        InputError: malformed angles.
+        PlanningError: the start or goal is unsafe, OMPL is not installed, or no
+            certified path was found.
+    """
+    begin = time.perf_counter()
+    a = _angles(theta0, "start")
+    b = _angles(theta1, "goal")
+    if safe is None:
+        width = math.radians(DEFAULT_HALF_WIDTH_DEG)
+        safe = InputSafeSet(
+            design,
+            settings,
+            low=np.minimum(a, b) - width,
+            high=np.maximum(a, b) + width,
+            seed=seed,
+        )
+    for name, theta in (("start", a), ("goal", b)):
+        evaluation = safe.evaluate(theta[None])
+        if not evaluation.safe[0]:
+            raise PlanningError(
+                f"the {name} theta = {np.round(np.degrees(theta), 3).tolist()} deg is not "
+                f"safe: {evaluation.reason(0, safe.settings)}"
+            )
+    straight = np.vstack([a, b])
+    ok, _, evaluation = safe.certify(straight)
+    path, raw = straight, straight
+    if not ok:
+        path, raw, evaluation = _search(safe, a, b, seed)
+    facts = {
+        "straight_length_deg": _length_deg(straight),
+        "raw_length_deg": _length_deg(raw),
+        "samples": int(evaluation.safe.size),
+        "min_singularity_margin": float(np.nanmin(evaluation.singularity_margin)),
+        "min_dexterity": float(np.nanmin(evaluation.dexterity)),
+        "planning_time_ms": 1e3 * (time.perf_counter() - begin),
+        "safe": safe,
+    }
+    return path, facts
+
+
+def _angles(theta: npt.ArrayLike, name: str) -> FloatArray:
+    try:
+        angles = np.asarray(theta, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be 3 input angles [rad], got {theta!r}") from None
+    if angles.shape != (3,) or not np.all(np.isfinite(angles)):
+        raise InputError(f"{name} must be 3 finite input angles [rad], got {theta!r}")
+    return angles
+
+
+_OMPL_SEEDED = False
+
+
+def _search(
+    safe: InputSafeSet, a: FloatArray, b: FloatArray, seed: int
+) -> tuple[FloatArray, FloatArray, Evaluation]:
+    """OMPL's RRTConnect + simplification, certified (see :func:`plan_inputs`)."""
+    global _OMPL_SEEDED
+    try:
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+    except ImportError as exc:
+        raise PlanningError(
+            "the straight line is not safe, and planning around it in the 3-D input "
+            f"space needs OMPL (pip install 'spm-pin[planning]'): {exc}"
+        ) from None
+    ou.setLogLevel(ou.LogLevel.LOG_ERROR)
+    if not _OMPL_SEEDED:  # OMPL accepts a seed once, before its first sampler
+        ou.RNG.setSeed(seed)
+        _OMPL_SEEDED = True
+    space = ob.RealVectorStateSpace(3)
+    bounds = ob.RealVectorBounds(3)
+    for j in range(3):
+        bounds.setLow(j, float(safe.low[j]))
+        bounds.setHigh(j, float(safe.high[j]))
+    space.setBounds(bounds)
+    setup = og.SimpleSetup(space)
+
+    def valid(state: Any) -> bool:
+        theta = np.array([state[0], state[1], state[2]], dtype=float)
+        return bool(safe.evaluate(theta[None]).safe[0])
+
+    setup.setStateValidityChecker(valid)
+    info = setup.getSpaceInformation()
+    # OMPL checks motions at this fraction of the box's extent: the check step.
+    extent = math.degrees(space.getMaximumExtent())
+    info.setStateValidityCheckingResolution(min(0.01, safe.settings.check_step_deg / extent * 4))
+    start, goal = space.allocState(), space.allocState()
+    for j in range(3):
+        start[j], goal[j] = float(a[j]), float(b[j])
+    setup.setStartAndGoalStates(start, goal)
+    setup.setPlanner(og.RRTConnect(info))
+    why = "no path found"
+    for _ in range(ATTEMPTS):
+        setup.clear()
+        setup.solve(SEARCH_SECONDS)
+        if not setup.haveExactSolutionPath():
+            why = f"no path found within {SEARCH_SECONDS:g} s"
+            continue
+        found = setup.getSolutionPath()
+        raw = np.array(
+            [[found.getState(k)[j] for j in range(3)] for k in range(found.getStateCount())]
+        )
+        setup.simplifySolution()
+        found = setup.getSolutionPath()
+        path = np.array(
+            [[found.getState(k)[j] for j in range(3)] for k in range(found.getStateCount())]
+        )
+        path[0], path[-1] = a, b
+        ok, index, evaluation = safe.certify(path)
+        if ok:
+            return path, raw, evaluation
+        why = f"the path found fails the continuous certificate at sample {index}"
+    raise PlanningError(
+        f"no certified path from {np.round(np.degrees(a), 3).tolist()} deg to "
+        f"{np.round(np.degrees(b), 3).tolist()} deg in the 3-D input space: {why}"
+    )
