@@ -787,8 +787,9 @@ def test_states_at_accepted_goals_equal_the_full_computation(robot: spm.SPMRobot
 
 def test_command_quick_takes_exactly_the_goals_command_takes(robot: spm.SPMRobot) -> None:
     """``command_quick`` (the event loop's path for streamed goals) accepts what
-    ``command`` accepts and, refusing, moves nothing and raises nothing; ``command``
-    then gives the refusal's report."""
+    ``command`` accepts and, refused by a static check, moves nothing and raises
+    nothing (``command`` then gives the refusal's report); refused for its timing
+    alone, it raises the same report ``command`` gives, at once."""
     from spm_pin.remote import GoalRefusedError
 
     quick, full = KinematicBackend(robot=robot), KinematicBackend(robot=robot)
@@ -806,5 +807,17 @@ def test_command_quick_takes_exactly_the_goals_command_takes(robot: spm.SPMRobot
         assert np.array_equal(quick.joints(), goal if taken else before)
         assert np.array_equal(quick.joints(), full.joints())
     # Rate checks too: a jump far beyond the speed limit within 1 ms.
-    assert not quick.command_quick(goals[2] + 0.5, previous=goals[2], period=1e-3)
+    jump = {"previous": goals[2], "period": 1e-3}
+    with pytest.raises(GoalRefusedError) as refused:
+        quick.command_quick(goals[2] + 0.5, **jump)
     assert np.array_equal(quick.joints(), goals[2])
+    with pytest.raises(GoalRefusedError) as expected:
+        full.command(goals[2] + 0.5, **jump)
+    got, want = refused.value.report, expected.value.report
+    assert np.array_equal(got.theta, want.theta)
+    for field in ("safe", "reasons", "checks", "pairs", "assembly", "min_distance"):
+        assert getattr(got, field) == getattr(want, field), field
+    assert [check.name for check in refused.value.report.failed] == ["speed"]
+    from spm_pin.collision import check_input
+
+    assert got.assembly == check_input(goals[2] + 0.5, robot).mode  # without its distances

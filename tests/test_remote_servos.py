@@ -222,6 +222,6 @@ def test_spm_serve_device_serves_the_servos(bus: EmulatedBus, tmp_path: Any) -> 
         _wait_for(lambda: [bus.item(i, "Torque Enable") for i in IDS] == [1, 1, 1])
     finally:
         process.terminate()
-        process.wait(timeout=ANSWER_TIMEOUT)
-    assert process.returncode == 0
+        _, err = process.communicate(timeout=ANSWER_TIMEOUT)
+    assert process.returncode == 0, err
     assert [bus.item(i, "Torque Enable") for i in IDS] == [0, 0, 0]  # off on exit

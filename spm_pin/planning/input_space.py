@@ -69,13 +69,18 @@ class InputSafeSet:
     Args:
         design: The SPM (default: the Agile Eye).
         settings: The thresholds and the check step (``grid_step_deg`` unused).
-        low, high: The planning box [rad], (3,) each.
+        low: The planning box's lower corner [rad], (3,).
+        high: Its upper corner [rad], (3,).
         robot: The robot with its collision checker (default: built).
         seed: Seed of the random pairs the Lipschitz bounds are measured at.
 
     Attributes:
-        design, settings, robot, checker: As given or built.
-        low, high: The box [rad].
+        design: The design.
+        settings: As given (or the default).
+        robot: The robot model.
+        checker: Its collision checker.
+        low: The box's lower corner [rad].
+        high: The box's upper corner [rad].
         lipschitz: The continuity bounds, per degree of input motion.
         coordinates: ``"inputs"``: radii and steps are degrees of input motion.
         build_time_s: Seconds spent measuring the bounds.
@@ -211,7 +216,8 @@ def plan_inputs(
     path simplified by OMPL and certified (up to :data:`ATTEMPTS` searches).
 
     Args:
-        theta0, theta1: Start and goal input angles [rad], (3,) each.
+        theta0: Start input angles [rad], (3,).
+        theta1: Goal input angles [rad], (3,).
         design: The SPM (default: the Agile Eye); ignored when ``safe`` is given.
         settings: The thresholds (default :class:`PlanSettings`).
         safe: The safe set to plan in (default: built for the start and goal).

@@ -398,15 +398,24 @@ class GuardedTwin:
         rate_only = bool(verdict.reasons) and all(
             _check_of(reason) in RATE_CHECK_NAMES for reason in verdict.reasons
         )
-        report = check_input(
-            theta, self.robot, margin=limits.collision_margin, distances=not rate_only
-        )
+        home = self._home_label()
+        found: tuple[LinkPair, ...]
+        mode: str | None
+        if rate_only and home is not None:
+            # The static checks passed: the home mode exists with no pair within the
+            # margin, as check_input finds it; the distances are not computed.
+            found, mode, min_distance = (), home, math.inf
+        else:
+            report = check_input(
+                theta, self.robot, margin=limits.collision_margin, distances=not rate_only
+            )
+            found, mode, min_distance = report.pairs, report.mode, report.min_distance
         pairs = list(verdict.collisions)
-        pairs += [pair for pair in report.pairs if pair not in pairs]
+        pairs += [pair for pair in found if pair not in pairs]
         reasons = list(verdict.reasons)
-        if report.pairs and not verdict.collisions:
-            names = ", ".join(f"{a}-{b}" for a, b in report.pairs)
-            where = "no real assembly" if report.mode is None else f"assembly mode {report.mode}"
+        if found and not verdict.collisions:
+            names = ", ".join(f"{a}-{b}" for a, b in found)
+            where = "no real assembly" if mode is None else f"assembly mode {mode}"
             reasons.append(
                 f"links collide (margin {limits.collision_margin * 1e3:g} mm, {where}): {names}"
             )
@@ -426,17 +435,26 @@ class GuardedTwin:
             checks.append(CheckOutcome(name, passed, "; ".join(grouped[name]) or None))
         return GoalReport(
             theta=theta.copy(),
-            safe=verdict.safe and not report.pairs,
+            safe=verdict.safe and not found,
             reasons=tuple(reasons),
             checks=tuple(checks),
             reachable=verdict.reachable,
             singularity_margin=verdict.singularity_margin,
             dexterity=verdict.dexterity,
             pairs=tuple(pairs),
-            assembly=report.mode,
-            min_distance=report.min_distance,
+            assembly=mode,
+            min_distance=min_distance,
             collision_margin=limits.collision_margin,
         )
+
+    def _home_label(self) -> str | None:
+        """The home assembly mode's label (``"+++/+"`` style) that a safe verdict of
+        the guard settles, or None when its limits do not settle it (a negative
+        collision margin, or no singularity margin to keep b_ii and det A from 0)."""
+        limits = self.guard.limits
+        if limits.collision_margin < 0 or not limits.min_singularity_margin > 0:
+            return None
+        return "+++/+" if float(self.design.home_det_a) > 0 else "+++/-"
 
     def _compute_state(self, theta: FloatArray, min_distance: float | None = None) -> TwinState:
         """The state at input angles [rad]; ``min_distance`` [m] when already known
@@ -484,8 +502,8 @@ class GuardedTwin:
         """
         from ..kinematics import _scalar
 
-        limits = self.guard.limits
-        if limits.collision_margin < 0 or not limits.min_singularity_margin > 0:
+        label = self._home_label()
+        if label is None:
             return None  # the verdict would not settle the pairs or the label
         verdict = self.guard.cached_verdict(theta)
         if verdict is None or not verdict.safe:
@@ -501,7 +519,7 @@ class GuardedTwin:
             min_distance=min_distance,
             dexterity=verdict.dexterity,
             singularity_margin=verdict.singularity_margin,
-            assembly="+++/+" if float(self.design.home_det_a) > 0 else "+++/-",
+            assembly=label,
             backend=self.name,
             time=time.time(),
         )

@@ -9,6 +9,7 @@ distance, is computed on a robot of its own and, while goals stream in, at most 
 from __future__ import annotations
 
 import dataclasses
+import math
 import threading
 import time
 from typing import TYPE_CHECKING
@@ -219,14 +220,17 @@ class KinematicBackend(GuardedTwin):
         period: float | None = None,
         previous_period: float | None = None,
     ) -> bool:
-        """:meth:`command` without the report of a refusal: True when the goal was
-        safe and taken, False when the guard refused it (nothing moved). Costs the
-        guard's checks alone (a fraction of a millisecond), so a server may call it
-        on its event loop and leave only refusals, whose report costs milliseconds,
-        to :meth:`command` in a worker thread.
+        """:meth:`command` without the costly report of a refusal: True when the goal
+        was safe and taken, False when a static check of the guard refused it
+        (nothing moved). Costs the guard's checks alone (a fraction of a
+        millisecond), so a server may call it on its event loop and leave only those
+        refusals, whose report costs milliseconds, to :meth:`command` in a worker
+        thread.
 
         Raises:
             InputError: as :meth:`move`.
+            GoalRefusedError: refused for its speed or acceleration alone (its report
+                is as quick: the static checks passed, no distances are computed).
         """
         goal, last, before = _goal_arguments(theta, previous, before_previous)
         with self._lock:
@@ -238,6 +242,9 @@ class KinematicBackend(GuardedTwin):
                 previous_period=previous_period,
             )
             if not verdict.safe:
+                report = self._report(goal, last, before, period, verdict, previous_period)
+                if report.assembly is not None and math.isinf(report.min_distance):
+                    report.require()  # refused for its timing alone: a quick report
                 return False
             self._theta = goal
             self._state = None
