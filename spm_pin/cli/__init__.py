@@ -27,6 +27,8 @@ Commands::
     spm workspace [--step DEG | --samples N [--seed S]] [--range LOW HIGH] [--margin-mm MM]
                 [--min-dexterity X] [--no-clearance] [--workers N] [--out DIR]
                 [--no-plots] [--quiet] [--json] [--design NAME|FILE]
+    spm optimize --objectives NAME ... (--vary NAME=LOW:HIGH ... | --space FILE)
+                 [--trials N] [--seed S] [--storage FILE] [--json] [--design NAME|FILE]
     spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic] [--design NAME|FILE]
               [--token-file FILE]
 
@@ -63,6 +65,7 @@ from . import (
     dynamics,
     kinematics,
     model,
+    optimize,
     plan,
     remote,
     study,
@@ -109,6 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     dynamics.add_parser(commands)  # torques
     collision.add_parser(commands)  # collide
     workspace.add_parser(commands)  # workspace
+    optimize.add_parser(commands)  # optimize
     plan.add_parser(commands)  # plan
     remote.add_parser(commands)  # serve
 

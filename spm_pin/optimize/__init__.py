@@ -7,6 +7,9 @@ the safe orientation workspace that ``spm workspace`` reports (see
 :mod:`spm_pin.optimize.objectives` holds the variables of a study
 (:class:`DesignSpace`) and the objectives beyond the workspace's size (the global
 conditioning index, the worst dexterity over a required cone of tilts).
+:mod:`spm_pin.optimize.torque` gives the peak motor torque along a required motion
+with a payload, and :mod:`spm_pin.optimize.study` runs resumable studies on Optuna
+(the ``optimize`` extra), as ``spm optimize`` does.
 """
 
 from .objectives import (
@@ -20,16 +23,30 @@ from .objectives import (
     home_clearance,
 )
 from .scoring import WorkspaceScore, safe_workspace_score
+from .study import OBJECTIVES, StudyResult, StudySettings, TrialRecord, evaluate, run_study
+from .torque import Motion, Payload, PeakTorque, cone_motion, motion_inputs, peak_torque
 
 __all__ = [
+    "OBJECTIVES",
     "ConeDexterity",
     "DesignSpace",
     "Envelope",
+    "Motion",
+    "Payload",
+    "PeakTorque",
+    "StudyResult",
+    "StudySettings",
+    "TrialRecord",
     "Variable",
     "WorkspaceScore",
     "cone_dexterity",
+    "cone_motion",
     "envelope",
+    "evaluate",
     "global_conditioning_index",
     "home_clearance",
+    "motion_inputs",
+    "peak_torque",
+    "run_study",
     "safe_workspace_score",
 ]

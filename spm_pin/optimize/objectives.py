@@ -27,6 +27,7 @@ import numpy as np
 from ..design import LinkDimensions, SPMDesign
 from ..errors import InputError
 from ..kinematics import inverse_kinematics, jacobian
+from ._margin_check import margin_check_of
 from .scoring import WorkspaceScore
 
 __all__ = [
@@ -277,18 +278,14 @@ class Envelope:
 
 
 def _robot_of(design: SPMDesign | str | None) -> Any:
-    from ..collision import build_robot
-
-    return build_robot(SPMDesign.from_spec(design))
+    return margin_check_of(SPMDesign.from_spec(design)).robot
 
 
 def envelope(design: SPMDesign | str | None = None, *, robot: Any = None) -> Envelope:
     """The envelope of a design from its links' real shapes (the convex pieces of
     the collision model; ``robot``: one already built, else built here)."""
-    from ..collision import checker_of
-
     robot = robot if robot is not None else _robot_of(design)
-    pieces = checker_of(robot).pieces
+    pieces = margin_check_of(robot.design).checker.pieces
     moving = np.vstack([p.vertices for p in pieces if p.link != "base"])
     fixed = np.vstack([p.vertices for p in pieces if p.link == "base"])
     radius = float(np.max(np.linalg.norm(moving, axis=1)))
@@ -303,8 +300,11 @@ def envelope(design: SPMDesign | str | None = None, *, robot: Any = None) -> Env
 def home_clearance(design: SPMDesign | str | None = None, *, robot: Any = None) -> float:
     """The smallest distance between two checked links at home (all inputs 0) [m];
     negative or 0 where links touch. The constraint "no collision at home" is
-    ``home_clearance(design) > margin``."""
-    from ..collision import check_input
+    ``home_clearance(design) > margin``.
 
+    The distances come from the design's collision checker made without probes
+    (:mod:`spm_pin.optimize._margin_check`: the same pieces and distances as the
+    full checker, without its costly set-up)."""
     robot = robot if robot is not None else _robot_of(design)
-    return float(check_input(np.zeros(3), robot).min_distance)
+    distances = margin_check_of(robot.design).checker.distances(robot.configuration(np.zeros(3)))
+    return float(min(distances.values()))
