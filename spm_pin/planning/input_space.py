@@ -36,7 +36,6 @@ import numpy.typing as npt
 
 from ..design import SPMDesign
 from ..errors import InputError, PlanningError
-from ..kinematics import forward_kinematics, jacobian
 from ..model.robot import SPMRobot
 from ._evaluation import Evaluation
 from .safe_set import (
@@ -46,6 +45,7 @@ from .safe_set import (
     certify_polyline,
     chain_change,
     evaluate_with_radius,
+    kinematic_checks,
     moving_radius,
 )
 
@@ -119,16 +119,7 @@ class InputSafeSet:
 
     # ---------------------------------------------------------------- checks
     def _kinematics(self, theta: FloatArray) -> tuple[Any, Any, Any, FloatArray]:
-        fk = forward_kinematics(theta, self.design)
-        reachable = np.asarray(fk.reachable, dtype=bool)
-        R = np.where(reachable[:, None, None], fk.R, np.eye(3))
-        jac = jacobian(theta, self.design, R=R)
-        sing = np.where(reachable, jac.singularity_margin, np.nan)
-        dex = np.where(reachable, jac.dexterity, np.nan)
-        q = np.zeros((theta.shape[0], self.robot.model.nq))
-        if np.any(reachable):
-            q[reachable] = self.robot._configuration_from_rotation(theta[reachable], R[reachable])
-        return reachable, sing, dex, q
+        return kinematic_checks(self.robot, theta)
 
     def _measure(self, rng: np.random.Generator) -> Lipschitz:
         """Lipschitz bounds from random pairs of inputs LIPSCHITZ_STEP_DEG apart."""

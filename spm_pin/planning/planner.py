@@ -128,12 +128,9 @@ def _length_deg(theta: FloatArray) -> float:
     return float(np.sum(np.linalg.norm(np.degrees(np.diff(theta, axis=0)), axis=1)))
 
 
-def _end(
-    value: Any, name: str, safe: SafeSet, reference_yaw: float | None, turns: int
-) -> FloatArray:
-    """Input angles of an end point: theta (3,) as given, or a rotation (3, 3) solved
-    in the home working mode with the mean input nearest ``reference_yaw`` plus
-    ``turns`` whole turns."""
+def _angles_or_rotation(value: Any, name: str) -> FloatArray:
+    """An end point as given: finite input angles (3,) [rad] (a copy), or an array of
+    shape (3, 3) to be checked as a rotation; else InputError."""
     array = np.asarray(value, dtype=float) if not isinstance(value, str) else np.empty(0)
     if array.shape == (3,):
         if not np.all(np.isfinite(array)):
@@ -147,6 +144,18 @@ def _end(
             argument=name,
             value=value,
         )
+    return array
+
+
+def _end(
+    value: Any, name: str, safe: SafeSet, reference_yaw: float | None, turns: int
+) -> FloatArray:
+    """Input angles of an end point: theta (3,) as given, or a rotation (3, 3) solved
+    in the home working mode with the mean input nearest ``reference_yaw`` plus
+    ``turns`` whole turns."""
+    array = _angles_or_rotation(value, name)
+    if array.shape == (3,):
+        return array
     rotation = as_rotation(array, name)
     ik = inverse_kinematics(rotation[None], safe.design)
     legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
@@ -366,19 +375,9 @@ def _plan_inputs(
 def _input_end(value: Any, name: str, design: SPMDesign) -> FloatArray:
     """Input angles of an end point of a design that is not coaxial: theta (3,) as
     given, or a rotation (3, 3) solved in the home working mode."""
-    array = np.asarray(value, dtype=float) if not isinstance(value, str) else np.empty(0)
+    array = _angles_or_rotation(value, name)
     if array.shape == (3,):
-        if not np.all(np.isfinite(array)):
-            raise InputError(f"{name} must be finite angles [rad], got {value!r}", argument=name)
-        result: FloatArray = array.copy()
-        return result
-    if array.shape != (3, 3):
-        raise InputError(
-            f"{name} must be input angles (3,) [rad] or a rotation matrix (3, 3), got "
-            f"shape {array.shape}",
-            argument=name,
-            value=value,
-        )
+        return array
     ik = inverse_kinematics(as_rotation(array, name)[None], design)
     legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
     if legs:

@@ -176,14 +176,7 @@ class SafeSet:
         D12, D23 = np.meshgrid(axis, axis, indexing="ij")
         inside = D12 + D23 < 360.0 - 1e-9
         theta = self.theta_of(D12[inside], D23[inside], 0.0)
-        fk = forward_kinematics(theta, design)
-        reachable = np.asarray(fk.reachable, dtype=bool)
-        R = np.where(reachable[:, None, None], fk.R, np.eye(3))
-        jac = jacobian(theta, design, R=R)
-        sing = np.where(reachable, jac.singularity_margin, np.nan)
-        dex = np.where(reachable, jac.dexterity, np.nan)
-        q = np.zeros((theta.shape[0], robot.model.nq))
-        q[reachable] = robot._configuration_from_rotation(theta[reachable], R[reachable])
+        reachable, sing, dex, q = kinematic_checks(robot, theta)
         self.lipschitz = self._measure(inside, reachable, sing, dex, q)
         evaluation = self._evaluate(theta, reachable, sing, dex, q, 0.0)
         self.safe = np.zeros(inside.shape, dtype=bool)
@@ -285,15 +278,7 @@ class SafeSet:
         [deg], up to ``want``, around each sample that is certified safe (negative
         where the sample itself is unsafe)."""
         angles = np.asarray(theta, dtype=float).reshape(-1, 3)
-        fk = forward_kinematics(angles, self.design)
-        reachable = np.asarray(fk.reachable, dtype=bool)
-        R = np.where(reachable[:, None, None], fk.R, np.eye(3))
-        jac = jacobian(angles, self.design, R=R)
-        sing = np.where(reachable, jac.singularity_margin, np.nan)
-        dex = np.where(reachable, jac.dexterity, np.nan)
-        q = np.zeros((angles.shape[0], self.robot.model.nq))
-        if np.any(reachable):
-            q[reachable] = self.robot._configuration_from_rotation(angles[reachable], R[reachable])
+        reachable, sing, dex, q = kinematic_checks(self.robot, angles)
         return self._evaluate(angles, reachable, sing, dex, q, want)
 
     def _gap_steps(self, theta: FloatArray) -> FloatArray:
@@ -345,6 +330,24 @@ class SafeSet:
             rows.append(path[k - 1] + t * (path[k] - path[k - 1]))
         result: FloatArray = np.vstack(rows)
         return result
+
+
+def kinematic_checks(
+    robot: SPMRobot, theta: FloatArray
+) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
+    """At input angles (n, 3) [rad]: whether the home assembly mode exists, the
+    singularity margin and the dexterity there (NaN where it does not), and the
+    robot's configurations (n, nq) (zeros where it does not)."""
+    fk = forward_kinematics(theta, robot.design)
+    reachable = np.asarray(fk.reachable, dtype=bool)
+    R = np.where(reachable[:, None, None], fk.R, np.eye(3))
+    jac = jacobian(theta, robot.design, R=R)
+    sing: FloatArray = np.where(reachable, jac.singularity_margin, np.nan)
+    dex: FloatArray = np.where(reachable, jac.dexterity, np.nan)
+    q = np.zeros((theta.shape[0], robot.model.nq))
+    if np.any(reachable):
+        q[reachable] = robot._configuration_from_rotation(theta[reachable], R[reachable])
+    return reachable, sing, dex, q
 
 
 def chain_change(qa: FloatArray, qb: FloatArray) -> FloatArray:
