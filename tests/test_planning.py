@@ -102,6 +102,20 @@ def test_an_orientation_goal_is_reached_the_shortest_way_round(safe: SafeSet) ->
     assert more.turns == 2 and more.length_deg > path.length_deg + 700.0
 
 
+def test_an_orientation_goal_whose_inputs_wrap_apart_is_not_turned_by_a_third(
+    safe: SafeSet,
+) -> None:
+    """Inverse kinematics wraps each input on its own: here the third comes back a
+    turn below the other two, and the plain mean of the three would be a third of a
+    turn off (the platform turned by 120 degrees)."""
+    consistent = np.radians([166.8, 168.2, 190.8])
+    R = np.asarray(spm.forward_kinematics(consistent).R)
+    solved = spm.inverse_kinematics(R).theta
+    assert np.degrees(np.ptp(solved)) > 180.0  # wrapped apart
+    path = plan(np.zeros(3), R, safe=safe)
+    np.testing.assert_allclose(spm.forward_kinematics(path.goal).R, R, atol=TOL["orientation"])
+
+
 def test_an_unsafe_goal_is_refused_with_the_check_and_a_nearest_safe_input(
     safe: SafeSet, guard: SafetyGuard
 ) -> None:

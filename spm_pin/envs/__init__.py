@@ -16,6 +16,10 @@ Options: :class:`OrientSettings` (design, servo limits, goal sampling, safety mo
 reward weights :class:`RewardWeights`, observation noise), passed as keyword
 arguments to ``gymnasium.make`` (with the fields of :class:`PhysicsSettings` for the
 dynamic environment).
+
+A scripted baseline, :class:`ScriptedPolicy` (inverse kinematics, a certified path and
+a braking profile, from the observation alone), and :func:`evaluate_policy`, which
+measures any policy's success rate.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import gymnasium
 from ._core import OBSERVATION_SIZE, geodesic_angle
 from ._dynamic import ACTUATIONS, PhysicsSettings
 from ._render import FRAME_PIXELS
+from .baseline import ScriptedPolicy, evaluate_policy
 from .orient import RENDER_MODES, OrientEnv
 from .orient_dynamic import OrientDynamicEnv
 from .settings import GOAL_MODES, SAFETY_MODES, START_MODES, OrientSettings, RewardWeights
@@ -47,6 +52,8 @@ __all__ = [
     "OrientVectorEnv",
     "PhysicsSettings",
     "RewardWeights",
+    "ScriptedPolicy",
+    "evaluate_policy",
     "geodesic_angle",
 ]
 

@@ -165,14 +165,18 @@ def _end(
             reasons=(f"leg(s) {legs} cannot close",),
             check=name,
         )
-    d12, d23, mean = (float(x) for x in safe.gaps_of(np.asarray(ik.theta[0], dtype=float)))
+    solved = np.asarray(ik.theta[0], dtype=float)
+    d12, d23, _ = (float(x) for x in safe.gaps_of(solved))
     if d12 + d23 >= 360.0:
         raise PlanningError(
             f"the {name} orientation needs the proximal links in another order",
             reasons=("proximal links out of order",),
             check=name,
         )
-    yaw = mean
+    # The mean input of the inputs with these gaps whose first is the solved one:
+    # each solved input is wrapped on its own, so their plain mean may be a third
+    # of a turn off (and the platform turned by 120 degrees).
+    yaw = float(solved[0] - safe.theta_of(d12, d23, 0.0)[0])
     if reference_yaw is not None:
         yaw += 2.0 * math.pi * round((reference_yaw - yaw) / (2.0 * math.pi))
     else:
