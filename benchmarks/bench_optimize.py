@@ -20,14 +20,28 @@ defaults of ``spm workspace``):
    by default), warm;
 4. ``targets``: the score's safe set and figures equal to the maps'
    (``equal_to_map``), and one score <= 0.5 s on one core (the median of ``score``;
-   full runs only).
+   full runs only);
+5. ``engines``: the evaluations of a study (:func:`spm_pin.optimize.run_study`'s
+   trial, objectives tilt and peak_torque at the default settings, 6-degree grid) of
+   one list of random designs (40; ``--quick``: 6), new to every process, scored one
+   after the other in this process, on a Dask ``LocalCluster`` of 2 worker processes
+   through the study's own engine (up to 2 in flight per worker), and on a plain
+   ``concurrent.futures.ProcessPoolExecutor(2)`` (the peer). Each rate is scores per
+   second of wall time once the workers are up and warm (one evaluation each before
+   the clock starts; the start-up is reported apart); the scaling efficiency is
+   rate / (workers x in-process rate). Every engine's scores must be equal
+   (``equal_scores``). Skipped without Dask distributed.
 """
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import itertools
+import multiprocessing
+import os
 import sys
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -39,7 +53,9 @@ THREADS_LIMITED = limit_to_one_thread()
 import numpy as np  # noqa: E402
 
 import spm_pin as spm  # noqa: E402
-from spm_pin.optimize import safe_workspace_score  # noqa: E402
+from spm_pin.optimize import DesignSpace, Variable, safe_workspace_score  # noqa: E402
+from spm_pin.optimize._engines import dask_client, evaluate_on_cluster  # noqa: E402
+from spm_pin.optimize.study import StudySettings, _evaluate_trial  # noqa: E402
 from spm_pin.workspace import WorkspaceMap, WorkspaceSettings, workspace_map  # noqa: E402
 
 from ._common import (  # noqa: E402
@@ -69,10 +85,109 @@ class Sizes:
     scores: int
     new_designs: int
     maps: int
+    engine_designs: int
 
 
-FULL = Sizes(scores=15, new_designs=5, maps=3)
-QUICK = Sizes(scores=3, new_designs=2, maps=1)
+FULL = Sizes(scores=15, new_designs=5, maps=3, engine_designs=40)
+QUICK = Sizes(scores=3, new_designs=2, maps=1, engine_designs=6)
+
+#: The engines section: its design space, objectives, settings and worker processes.
+ENGINE_SPACE = DesignSpace(
+    (Variable("alpha1_deg", 35.0, 75.0), Variable("alpha2_deg", 60.0, 120.0))
+)
+ENGINE_OBJECTIVES = ("tilt", "peak_torque")
+ENGINE_SETTINGS = StudySettings()
+ENGINE_WORKERS = 2
+
+
+def _engine_tasks(count: int) -> tuple[tuple[Any, ...], list[tuple[Any, ...]]]:
+    """The warm-up task and ``count`` tasks (arguments of the study's evaluation) of
+    random designs of :data:`ENGINE_SPACE` (seeded), each under its own name."""
+    rng = np.random.default_rng(0)
+
+    def task(label: str) -> tuple[Any, ...]:
+        values = {v.name: float(rng.uniform(v.low, v.high)) for v in ENGINE_SPACE.variables}
+        return (ENGINE_SPACE, values, ENGINE_OBJECTIVES, ENGINE_SETTINGS, label)
+
+    warm = task("bench-warm-up")
+    return warm, [task(f"bench-{k}") for k in range(count)]
+
+
+def _engine_entry(workers: int, seconds: float, count: int, single: float | None) -> dict[str, Any]:
+    rate = count / seconds
+    return {
+        "workers": workers,
+        "seconds": seconds,
+        "per_second": rate,
+        "efficiency": None if single is None else rate / (workers * single),
+    }
+
+
+def run_engines(count: int) -> dict[str, Any]:
+    """Scores per second of a study's evaluations in this process, on a Dask
+    LocalCluster and on a ProcessPoolExecutor (see the module)."""
+    warm, tasks = _engine_tasks(count)
+    out: dict[str, Any] = {
+        "designs": count,
+        "objectives": list(ENGINE_OBJECTIVES),
+        "step_deg": ENGINE_SETTINGS.step_deg,
+        "cpus": os.cpu_count(),
+        "load_average_before": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+    }
+    _evaluate_trial(*warm)  # imports and one-off set-up (not the designs' own)
+    start = time.perf_counter()
+    serial = [_evaluate_trial(*task) for task in tasks]
+    in_process = _engine_entry(1, time.perf_counter() - start, count, None)
+    single = in_process["per_second"]
+    out["in_process"] = in_process
+    outcomes = {"in_process": serial}
+    # The peer: a plain process pool, spawned (as Dask's workers are), warmed up.
+    start = time.perf_counter()
+    with concurrent.futures.ProcessPoolExecutor(
+        ENGINE_WORKERS,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_evaluate_trial,
+        initargs=warm,
+    ) as pool:
+        for future in [pool.submit(time.sleep, 0.5) for _ in range(ENGINE_WORKERS)]:
+            future.result()  # every process up and warm
+        startup = time.perf_counter() - start
+        start = time.perf_counter()
+        pooled = list(pool.map(_evaluate_trial, *zip(*tasks, strict=True)))
+        seconds = time.perf_counter() - start
+    out["process_pool"] = {
+        **_engine_entry(ENGINE_WORKERS, seconds, count, single),
+        "startup_s": startup,
+        "method": "concurrent.futures.ProcessPoolExecutor(2, spawn), pool.map",
+    }
+    outcomes["process_pool"] = pooled
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        out["dask_local_cluster"] = {"skipped": "dask[distributed] is not installed"}
+    else:
+        start = time.perf_counter()
+        with dask_client(ENGINE_WORKERS, None) as client:  # the study's LocalCluster
+            client.run(_evaluate_trial, *warm)  # on every worker
+            startup = time.perf_counter() - start
+            results: dict[int, Any] = {}
+            pending = iter(enumerate(tasks))
+
+            def tell(key: int, result: Any, reason: str | None) -> None:
+                results[key] = result if reason is None else reason
+
+            start = time.perf_counter()
+            evaluate_on_cluster(client, count, lambda: next(pending), _evaluate_trial, tell)
+            seconds = time.perf_counter() - start
+        out["dask_local_cluster"] = {
+            **_engine_entry(ENGINE_WORKERS, seconds, count, single),
+            "startup_s": startup,
+            "method": "distributed.LocalCluster(2 processes, 1 thread each), the study's engine",
+        }
+        outcomes["dask_local_cluster"] = [results[k] for k in range(count)]
+    out["equal_scores"] = all(found == serial for found in outcomes.values())
+    out["failed"] = sum(o.error is not None for o in serial)
+    return out
 
 
 def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
@@ -122,6 +237,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
         targets["score_2deg_s"] = target(
             results["score"]["median_s"], TARGET_SCORE_S, at_least=False, unit="s"
         )
+    results["engines"] = run_engines(sizes.engine_designs)
     with_all_pass(targets)
     return {
         "benchmark": "optimize",
@@ -165,6 +281,39 @@ def report(payload: dict[str, Any]) -> str:
             ]
         )
     table = format_table(["case", "median", "p95", "scores/s"], rows)
+    engines = results["engines"]
+    load = engines["load_average_before"]
+    load = "n/a" if load is None else f"{load:.2f}"
+    engine_rows = []
+    for label, key in (
+        ("in process, one after the other", "in_process"),
+        ("Dask LocalCluster (the study's engine)", "dask_local_cluster"),
+        ("peer: ProcessPoolExecutor", "process_pool"),
+    ):
+        entry = engines[key]
+        if "skipped" in entry:
+            engine_rows.append([label, "-", "skipped", "-", "-", "-"])
+            continue
+        efficiency = entry["efficiency"]
+        engine_rows.append(
+            [
+                label,
+                str(entry["workers"]),
+                f"{entry['seconds']:.2f} s",
+                format_rate(entry["per_second"]),
+                "-" if efficiency is None else f"{efficiency:.0%}",
+                format_seconds(entry["startup_s"]) if "startup_s" in entry else "-",
+            ]
+        )
+    engine_table = (
+        f"Study evaluations of {engines['designs']} designs "
+        f"({', '.join(engines['objectives'])}, {engines['step_deg']:g} deg; "
+        f"{engines['cpus']} CPUs, load before {load}; "
+        f"equal scores: {engines['equal_scores']})\n"
+        + format_table(
+            ["engine", "workers", "time", "scores/s", "efficiency", "start-up"], engine_rows
+        )
+    )
     lines = ["Targets"]
     for name, record in payload["targets"].items():
         if name == "all_pass":
@@ -180,7 +329,7 @@ def report(payload: dict[str, Any]) -> str:
         f"{figures['safe_tilt_every_direction_deg']:.2f} deg; "
         f"{payload['peer']['speed_ratio_ours_vs_peer']:.1f}x faster than the map"
     )
-    return "\n\n".join([head, table, notes, "\n".join(lines)])
+    return "\n\n".join([head, table, notes, engine_table, "\n".join(lines)])
 
 
 def main(argv: Sequence[str] | None = None) -> int:

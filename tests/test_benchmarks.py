@@ -195,7 +195,13 @@ def test_quick_optimize_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert "Targets" in capsys.readouterr().out
     data = json.loads(out.read_text())
     assert data["benchmark"] == "optimize" and data["config"]["quick"] is True
-    assert set(data["results"]) == {"score", "score_new_design"}
+    assert set(data["results"]) == {"score", "score_new_design", "engines"}
+    engines = data["results"]["engines"]
+    assert engines["designs"] == bench_optimize.QUICK.engine_designs and engines["equal_scores"]
+    for key in ("in_process", "process_pool", "dask_local_cluster"):
+        if "skipped" not in engines[key]:  # Dask distributed is optional
+            assert engines[key]["per_second"] > 0 and engines[key]["seconds"] > 0
+    assert engines["process_pool"]["efficiency"] > 0
     entries = (data["results"]["score"], data["results"]["score_new_design"], data["peer"])
     for entry in (*entries, data["peer_clearance"]):
         assert set(entry) >= TIMING_KEYS - {"n"}

@@ -1,5 +1,7 @@
 """``spm optimize``: a design study on Optuna (:mod:`spm_pin.optimize.study`, imported
-when the command runs), resumable from its storage file."""
+when the command runs), resumable from its storage file, its designs evaluated in this
+process, on a local Dask cluster (``--workers N``) or on a running one
+(``--scheduler ADDRESS``)."""
 
 from __future__ import annotations
 
@@ -85,6 +87,13 @@ def _run_optimize(args: argparse.Namespace) -> int:
         import optuna  # noqa: F401  (the optimize extra)
     except ImportError:
         raise UsageError("spm optimize needs Optuna: pip install 'spm-pin[optimize]'") from None
+    if args.workers > 1 or args.scheduler is not None:
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            raise UsageError(
+                "--workers and --scheduler need Dask: pip install 'dask[distributed]'"
+            ) from None
     result = run_study(
         space,
         args.objectives,
@@ -95,12 +104,16 @@ def _run_optimize(args: argparse.Namespace) -> int:
         population_size=args.population,
         enqueue=enqueue,
         progress=progress,
+        workers=args.workers,
+        scheduler=args.scheduler,
     )
     record: Record = {
         "design": base.name,
         "variables": [[v.name, v.low, v.high] for v in space.variables],
         "seed": args.seed,
         "storage": args.storage,
+        "workers": args.workers,
+        "scheduler": args.scheduler,
         "seconds": result.seconds,
         **result.summary(),
     }
@@ -136,7 +149,9 @@ def add_parser(commands: Any) -> None:
         "design within bounds, score each candidate by the objectives (NSGA-II for "
         "several, TPE for one), under constraints, and print the Pareto front. With "
         "--storage FILE the study is kept in an Optuna journal file (or an RDB URL such "
-        "as sqlite:///study.db): running again continues it up to --trials in all.",
+        "as sqlite:///study.db): running again continues it up to --trials in all. "
+        "--workers N or --scheduler ADDRESS evaluate the designs on Dask (this process "
+        "alone writes the storage).",
     )
     parser.add_argument(
         "--objectives",
@@ -164,6 +179,18 @@ def add_parser(commands: Any) -> None:
     )
     parser.add_argument(
         "--population", type=int, default=20, metavar="N", help="NSGA-II population (default 20)"
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="evaluate on a local Dask cluster of N processes (default 1: in this process)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="evaluate on the workers of a running Dask scheduler (tcp://host:8786)",
     )
     parser.add_argument(
         "--step", type=_number, default=6.0, metavar="DEG", help="workspace grid step (default 6)"

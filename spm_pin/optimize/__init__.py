@@ -12,6 +12,7 @@ with a payload, and :mod:`spm_pin.optimize.study` runs resumable studies on Optu
 (the ``optimize`` extra), as ``spm optimize`` does.
 """
 
+from ._engines import ClusterError
 from .objectives import (
     ConeDexterity,
     DesignSpace,
@@ -28,6 +29,7 @@ from .torque import Motion, Payload, PeakTorque, cone_motion, motion_inputs, pea
 
 __all__ = [
     "OBJECTIVES",
+    "ClusterError",
     "ConeDexterity",
     "DesignSpace",
     "Envelope",

@@ -18,6 +18,12 @@ designs that are best by one or several objectives, under constraints.
 * A design that cannot be evaluated (it does not assemble, the required motion leaves
   its workspace: any :class:`~spm_pin.SPMError`) is recorded as a failed trial with
   its reason in the trial's ``error`` attribute; the study goes on.
+* The engine: this process, one trial after the other (deterministic for a seed), or
+  a Dask distributed cluster (``workers`` local processes, or the cluster of a
+  ``scheduler`` address), several trials in flight (see
+  :mod:`spm_pin.optimize._engines`). Only this process touches the storage. On a
+  cluster the trials are told in the order they complete, so a seed fixes each
+  trial's sampler but not which trials it has seen: not the exact trials.
 
 Optuna is an optional dependency (``pip install spm-pin[optimize]``), imported when a
 study runs.
@@ -42,6 +48,7 @@ import numpy as np
 
 from ..design import SPMDesign
 from ..errors import InputError, SPMError
+from ._engines import ClusterError
 from ._margin_check import margin_check_of
 from .objectives import DesignSpace, cone_dexterity, envelope, global_conditioning_index
 from .scoring import safe_workspace_score
@@ -49,6 +56,7 @@ from .torque import Payload, cone_motion, peak_torque
 
 __all__ = [
     "OBJECTIVES",
+    "ClusterError",
     "Evaluation",
     "Objective",
     "StudyResult",
@@ -289,6 +297,39 @@ def evaluate(
 
 
 @dataclasses.dataclass(frozen=True)
+class _Outcome:
+    """What the evaluation of one trial sends back to the driver (picklable).
+
+    Attributes:
+        scores: The objective values, in the study's order (None if it failed).
+        constraints: The constraint values by name ({} if it failed).
+        error: Why it failed (None if it did not).
+    """
+
+    scores: tuple[float, ...] | None
+    constraints: dict[str, float]
+    error: str | None
+
+
+def _evaluate_trial(
+    space: DesignSpace,
+    values: dict[str, float],
+    names: tuple[str, ...],
+    settings: StudySettings,
+    label: str,
+) -> _Outcome:
+    """The evaluation of one trial's design values: a pure top-level function, run in
+    the driver or on a Dask worker. A design that cannot be evaluated (an
+    :class:`~spm_pin.SPMError`) is an outcome with its reason, not an exception."""
+    try:
+        design = space.design(values, name=label)
+        result = evaluate(design, names, settings)
+    except SPMError as exc:
+        return _Outcome(None, {}, f"{type(exc).__name__}: {exc}")
+    return _Outcome(tuple(result.scores[n] for n in names), result.constraints, None)
+
+
+@dataclasses.dataclass(frozen=True)
 class TrialRecord:
     """One trial of a study.
 
@@ -389,7 +430,12 @@ def _native_constraints() -> bool:
     return hasattr(optuna.trial.Trial, "set_constraint")
 
 
-def _sampler(n_objectives: int, seed: int, population_size: int, constrained: bool) -> Any:
+def _sampler(
+    n_objectives: int, seed: int, population_size: int, constrained: bool, *, parallel: bool
+) -> Any:
+    """The sampler of one trial; ``parallel``: trials are in flight meanwhile (TPE
+    then takes them as a constant liar, so it does not propose the same design twice;
+    Optuna 5's default, asked for explicitly on Optuna 4)."""
     import optuna
 
     constraints = _constraints_of if constrained and not _native_constraints() else None
@@ -399,7 +445,20 @@ def _sampler(n_objectives: int, seed: int, population_size: int, constrained: bo
             return optuna.samplers.NSGAIISampler(
                 population_size=population_size, seed=seed, constraints_func=constraints
             )
+        if parallel:
+            return optuna.samplers.TPESampler(
+                seed=seed, constraints_func=constraints, constant_liar=True
+            )
         return optuna.samplers.TPESampler(seed=seed, constraints_func=constraints)
+
+
+def _fail_running(study: Any, reason: str) -> None:
+    """Record the study's RUNNING trials as failed, with ``reason`` as their error."""
+    from optuna.trial import TrialState
+
+    for stale in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        study._storage.set_trial_user_attr(stale._trial_id, "error", reason)
+        study._storage.set_trial_state_values(stale._trial_id, TrialState.FAIL)
 
 
 def _storage(storage: str | Path | None) -> Any:
@@ -463,29 +522,56 @@ class _Progress:
             self._bar.close()
 
 
+def _record(trial: Any, names: tuple[str, ...]) -> TrialRecord:
+    """The record of a finished (COMPLETE or FAIL) Optuna ``FrozenTrial``."""
+    from optuna.trial import TrialState
+
+    complete = trial.state == TrialState.COMPLETE
+    constraint_names = trial.user_attrs.get("constraint_names", []) if complete else []
+    constraint_values = trial.user_attrs.get("constraints", []) if complete else []
+    constraints = dict(zip(constraint_names, constraint_values, strict=True))
+    return TrialRecord(
+        number=trial.number,
+        state=trial.state.name,
+        values={k: float(v) for k, v in trial.params.items()},
+        scores=dict(zip(names, trial.values, strict=True)) if complete else {},
+        constraints=constraints,
+        feasible=complete and all(c <= 0.0 for c in constraint_values),
+        error=trial.user_attrs.get("error"),
+    )
+
+
 def _records(study: Any, names: tuple[str, ...]) -> tuple[TrialRecord, ...]:
     from optuna.trial import TrialState
 
-    out = []
-    for trial in study.get_trials(deepcopy=False):
-        if trial.state not in (TrialState.COMPLETE, TrialState.FAIL):
-            continue
-        complete = trial.state == TrialState.COMPLETE
-        constraint_names = trial.user_attrs.get("constraint_names", []) if complete else []
-        constraint_values = trial.user_attrs.get("constraints", []) if complete else []
-        constraints = dict(zip(constraint_names, constraint_values, strict=True))
-        out.append(
-            TrialRecord(
-                number=trial.number,
-                state=trial.state.name,
-                values={k: float(v) for k, v in trial.params.items()},
-                scores=dict(zip(names, trial.values, strict=True)) if complete else {},
-                constraints=constraints,
-                feasible=complete and all(c <= 0.0 for c in constraint_values),
-                error=trial.user_attrs.get("error"),
-            )
+    return tuple(
+        _record(trial, names)
+        for trial in study.get_trials(deepcopy=False)
+        if trial.state in (TrialState.COMPLETE, TrialState.FAIL)
+    )
+
+
+def _check_engine(workers: int, scheduler: str | None) -> None:
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(
+            f"workers must be an integer >= 1, got {workers!r}", argument="workers", value=workers
         )
-    return tuple(out)
+    if scheduler is None:
+        return
+    if not isinstance(scheduler, str) or not scheduler.strip():
+        raise InputError(
+            f"scheduler must be the address of a Dask scheduler (tcp://host:port), "
+            f"got {scheduler!r}",
+            argument="scheduler",
+            value=scheduler,
+        )
+    if workers != 1:
+        raise InputError(
+            f"workers={workers} starts a local cluster; with scheduler={scheduler!r} the "
+            "cluster's own workers run the trials: give one or the other",
+            argument="workers",
+            value=workers,
+        )
 
 
 def _pareto(
@@ -518,6 +604,8 @@ def run_study(
     enqueue: Sequence[Mapping[str, float]] = (),
     progress: bool = False,
     callback: Callable[[TrialRecord], None] | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
 ) -> StudyResult:
     """Run (or continue) a design study until it holds ``n_trials`` trials.
 
@@ -536,7 +624,16 @@ def run_study(
         enqueue: Designs (values of the variables) to evaluate first, when the study
             is new (for example the base design, as a reference).
         progress: A progress bar on stderr.
-        callback: Called with each new finished trial.
+        callback: Called with each new finished trial (in the order they finish).
+        workers: Worker processes: 1 evaluates the trials in this process, one after
+            the other (deterministic for a seed); more start a Dask ``LocalCluster``
+            of that many processes (one thread each) for this call.
+        scheduler: The address of a running Dask scheduler (``tcp://host:8786``):
+            its workers evaluate the trials (``workers`` must then be 1). With a
+            cluster, up to two trials per worker thread are in flight; they are told
+            as they complete, so a seed fixes the sampler but not the exact trials.
+            Only this process touches ``storage``. In a script, call ``run_study``
+            under ``if __name__ == "__main__":`` (the local workers are spawned).
 
     Returns:
         :class:`StudyResult`.
@@ -545,8 +642,16 @@ def run_study(
         InputError: an unknown or repeated objective, ``n_trials`` not a positive
             integer, a bad seed, population or enqueued design, or a storage that
             holds another study (other space, objectives, settings or seed) or is not
-            an Optuna storage.
-        ImportError: Optuna is not installed (``pip install 'spm-pin[optimize]'``).
+            an Optuna storage; ``workers`` not a positive integer, a bad
+            ``scheduler``, or both given; no scheduler answers at ``scheduler``.
+        ClusterError: the cluster cancelled the evaluations (its scheduler went
+            away); the trials in flight are recorded as failed ("interrupted").
+        ImportError: Optuna, or Dask distributed for a cluster, is not installed.
+
+    A trial whose evaluation raised on a worker, or whose worker died, is a failed
+    trial with the reason in its ``error``. Whatever stops the call (Ctrl-C
+    included), the trials in flight are recorded as failed ("interrupted"): the
+    storage stays consistent and a new call continues the study.
     """
     try:
         import optuna
@@ -570,6 +675,7 @@ def run_study(
     settings = StudySettings() if settings is None else settings
     if not isinstance(settings, StudySettings):
         raise InputError("settings must be a StudySettings", argument="settings")
+    _check_engine(workers, scheduler)
     for values in enqueue:
         space.design(values)  # checked now: InputError before anything is stored
     spec = _spec(space, names, settings, seed, population_size)
@@ -606,10 +712,8 @@ def run_study(
                 "differ): use another file or the same space, objectives, settings and seed",
                 argument="storage",
             )
-        # A trial left running by a run that was stopped: failed (one worker at a time).
-        for stale in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-            study._storage.set_trial_user_attr(stale._trial_id, "error", "interrupted")
-            study._storage.set_trial_state_values(stale._trial_id, TrialState.FAIL)
+        # A trial left running by a run that was stopped: failed (one driver at a time).
+        _fail_running(study, "interrupted")
         finished = (TrialState.COMPLETE, TrialState.FAIL, TrialState.PRUNED)
         done = len(study.get_trials(deepcopy=False, states=finished))
         remaining = max(0, n_trials - done)
@@ -618,38 +722,60 @@ def run_study(
             v.name: optuna.distributions.FloatDistribution(float(v.low), float(v.high))
             for v in space.variables
         }
-        try:
-            for _ in range(remaining):
-                # The next trial's number (enqueued trials, waiting, come first).
-                number = len(study.get_trials(deepcopy=False, states=finished))
-                study.sampler = _sampler(
-                    len(names), _trial_seed(seed, number), population_size, bool(constraint_names)
+        on_cluster = scheduler is not None or workers > 1
+        finished_or_running = (*finished, TrialState.RUNNING)
+
+        def ask() -> tuple[Any, tuple[Any, ...]]:
+            # The next trial's number (enqueued trials, waiting, come first).
+            number = len(study.get_trials(deepcopy=False, states=finished_or_running))
+            study.sampler = _sampler(
+                len(names),
+                _trial_seed(seed, number),
+                population_size,
+                bool(constraint_names),
+                parallel=on_cluster,
+            )
+            trial = study.ask(distributions)
+            trial.set_user_attr("constraint_names", constraint_names)
+            return trial, (space, dict(trial.params), names, settings, f"trial-{trial.number}")
+
+        def tell(trial: Any, outcome: _Outcome | None, reason: str | None) -> None:
+            if outcome is None or outcome.scores is None:
+                error = reason if outcome is None else outcome.error
+                trial.set_user_attr("error", error)
+                study.tell(trial, state=TrialState.FAIL)
+                bar.update("failed")
+            else:
+                trial.set_user_attr("constraints", list(outcome.constraints.values()))
+                if _native_constraints():
+                    for key, limit in outcome.constraints.items():
+                        trial.set_constraint(key, limit)
+                study.tell(trial, list(outcome.scores))
+                feasible = all(value <= 0.0 for value in outcome.constraints.values())
+                bar.update(
+                    " ".join(f"{n}={v:.3g}" for n, v in zip(names, outcome.scores, strict=True))
+                    + ("" if feasible else " (infeasible)")
                 )
-                trial = study.ask(distributions)
-                trial.set_user_attr("constraint_names", constraint_names)
-                try:
-                    design = space.design(dict(trial.params), name=f"trial-{trial.number}")
-                    result = evaluate(design, names, settings)
-                except SPMError as exc:
-                    trial.set_user_attr("error", f"{type(exc).__name__}: {exc}")
-                    study.tell(trial, state=TrialState.FAIL)
-                    bar.update("failed")
-                else:
-                    trial.set_user_attr("constraints", list(result.constraints.values()))
-                    if _native_constraints():
-                        for key, limit in result.constraints.items():
-                            trial.set_constraint(key, limit)
-                    study.tell(trial, [result.scores[n] for n in names])
-                    bar.update(
-                        " ".join(f"{n}={result.scores[n]:.3g}" for n in names)
-                        + ("" if result.feasible else " (infeasible)")
-                    )
-                if callback is not None:
-                    callback(_records(study, names)[-1])
+            if callback is not None:
+                callback(_record(study._storage.get_trial(trial._trial_id), names))
+
+        try:
+            if not on_cluster:
+                for _ in range(remaining):
+                    trial, arguments = ask()
+                    tell(trial, _evaluate_trial(*arguments), None)
+            elif remaining:
+                from ._engines import dask_client, evaluate_on_cluster
+
+                local = min(workers, remaining)
+                with dask_client(local, scheduler) as client:
+                    try:
+                        evaluate_on_cluster(client, remaining, ask, _evaluate_trial, tell)
+                    except BaseException:
+                        _fail_running(study, "interrupted")  # before the cluster closes
+                        raise
         except BaseException:
-            for stale in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-                study._storage.set_trial_user_attr(stale._trial_id, "error", "interrupted")
-                study._storage.set_trial_state_values(stale._trial_id, TrialState.FAIL)
+            _fail_running(study, "interrupted")
             raise
         finally:
             bar.close()
