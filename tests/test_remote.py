@@ -709,6 +709,24 @@ def test_a_child_process_that_dies_leaves_the_distances_in_process(
         assert twin.state().min_distance == check_input(goal, robot).min_distance
 
 
+def test_a_child_process_that_cannot_start_leaves_the_distances_in_process(
+    robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from spm_pin.collision import check_input
+    from spm_pin.remote import kinematic
+
+    def refuse(design: object) -> None:
+        raise OSError("no processes here")
+
+    monkeypatch.setattr(kinematic, "DistanceWorker", refuse)
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 0.0)
+    with KinematicBackend(robot=robot, distance_process=True) as twin:
+        assert twin.distance_process is False and twin._worker is None
+        goal = np.radians([3.0, 1.0, -1.0])
+        twin.command(goal)
+        assert twin.state().min_distance == check_input(goal, robot).min_distance
+
+
 def test_streamed_goals_recompute_the_distance_at_most_every_interval(
     robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
 ) -> None:

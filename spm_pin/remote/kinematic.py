@@ -58,7 +58,8 @@ class KinematicBackend(GuardedTwin):
             which would stall a server's event loop. A read then gives the last
             distance computed while the child computes the next (its age: at most
             :data:`DISTANCE_INTERVAL` plus one computation). Stop the child with
-            :meth:`close` (or use the twin as a context manager).
+            :meth:`close` (or use the twin as a context manager). Where no process
+            can be started, the distances are computed in process.
 
     Attributes:
         name: ``"kinematic"``.
@@ -83,10 +84,14 @@ class KinematicBackend(GuardedTwin):
         start: FloatArray = np.zeros(3) if theta is None else _theta(theta)
         report = self._report(start).require()
         self.distance_process = bool(distance_process)
-        # Started now: a spawned process takes a while to start.
-        self._worker: DistanceWorker | None = (
-            DistanceWorker(self.design) if self.distance_process else None
-        )
+        # Started now: a spawned process takes a while to start. Where no process
+        # can be started, the distances are computed in process.
+        self._worker: DistanceWorker | None = None
+        if self.distance_process:
+            try:
+                self._worker = DistanceWorker(self.design)
+            except (OSError, RuntimeError):
+                self.distance_process = False
         self._theta: FloatArray = start
         self._state: TwinState | None = self._compute_state(start, report.min_distance)
         # The exact distances: a robot of their own (built at the first read after
