@@ -44,6 +44,7 @@ from .safe_set import (
     PlanSettings,
     certify_polyline,
     chain_change,
+    densify_polyline,
     evaluate_with_radius,
     kinematic_checks,
     moving_radius,
@@ -166,15 +167,7 @@ class InputSafeSet:
 
     def densify(self, theta: npt.ArrayLike) -> FloatArray:
         """The polyline (n, 3) [rad] sampled at most ``check_step_deg`` apart."""
-        path = np.asarray(theta, dtype=float).reshape(-1, 3)
-        steps = self.steps(path)
-        rows = [path[:1]]
-        for k in range(1, path.shape[0]):
-            parts = max(1, math.ceil(steps[k - 1] / self.settings.check_step_deg))
-            t = np.arange(1, parts + 1)[:, None] / parts
-            rows.append(path[k - 1] + t * (path[k] - path[k - 1]))
-        result: FloatArray = np.vstack(rows)
-        return result
+        return densify_polyline(theta, self.steps, self.settings.check_step_deg)
 
     def certify(self, theta: npt.ArrayLike) -> tuple[bool, int, Evaluation]:
         """Check a polyline of input angles (n, 3) [rad] as a continuous path.

@@ -156,16 +156,7 @@ def _end(
     array = _angles_or_rotation(value, name)
     if array.shape == (3,):
         return array
-    rotation = as_rotation(array, name)
-    ik = inverse_kinematics(rotation[None], safe.design)
-    legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
-    if legs:
-        raise PlanningError(
-            f"the {name} orientation is out of reach: leg(s) {legs} cannot close",
-            reasons=(f"leg(s) {legs} cannot close",),
-            check=name,
-        )
-    solved = np.asarray(ik.theta[0], dtype=float)
+    solved = _solve_home(array, name, safe.design)
     d12, d23, _ = (float(x) for x in safe.gaps_of(solved))
     if d12 + d23 >= 360.0:
         raise PlanningError(
@@ -382,6 +373,12 @@ def _input_end(value: Any, name: str, design: SPMDesign) -> FloatArray:
     array = _angles_or_rotation(value, name)
     if array.shape == (3,):
         return array
+    return _solve_home(array, name, design)
+
+
+def _solve_home(array: FloatArray, name: str, design: SPMDesign) -> FloatArray:
+    """Input angles [rad] of a rotation (3, 3) (checked) in the home working mode,
+    each wrapped on its own; PlanningError naming the legs that cannot close."""
     ik = inverse_kinematics(as_rotation(array, name)[None], design)
     legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
     if legs:

@@ -321,15 +321,7 @@ class SafeSet:
     def densify(self, theta: npt.ArrayLike) -> FloatArray:
         """The polyline (n, 3) [rad] sampled at most ``check_step_deg`` of gap motion
         apart (its vertices kept)."""
-        path = np.asarray(theta, dtype=float).reshape(-1, 3)
-        steps = self._gap_steps(path)
-        rows = [path[:1]]
-        for k in range(1, path.shape[0]):
-            parts = max(1, math.ceil(steps[k - 1] / self.settings.check_step_deg))
-            t = np.arange(1, parts + 1)[:, None] / parts
-            rows.append(path[k - 1] + t * (path[k] - path[k - 1]))
-        result: FloatArray = np.vstack(rows)
-        return result
+        return densify_polyline(theta, self._gap_steps, self.settings.check_step_deg)
 
 
 def kinematic_checks(
@@ -417,6 +409,23 @@ def evaluate_with_radius(
             colliding[k] = True
             radius[k] = -1.0
     return Evaluation(reachable, sing, dex, colliding, radius >= 0.0, radius)
+
+
+def densify_polyline(
+    theta: npt.ArrayLike, steps_of: Callable[[FloatArray], FloatArray], check_step: float
+) -> FloatArray:
+    """The polyline (n, 3) [rad] sampled at most ``check_step`` apart in the planning
+    coordinates whose distances between consecutive rows ``steps_of`` gives [deg]
+    (its vertices kept)."""
+    path = np.asarray(theta, dtype=float).reshape(-1, 3)
+    steps = steps_of(path)
+    rows = [path[:1]]
+    for k in range(1, path.shape[0]):
+        parts = max(1, math.ceil(steps[k - 1] / check_step))
+        t = np.arange(1, parts + 1)[:, None] / parts
+        rows.append(path[k - 1] + t * (path[k] - path[k - 1]))
+    result: FloatArray = np.vstack(rows)
+    return result
 
 
 def certify_polyline(
