@@ -7,6 +7,8 @@ what is allowed (see the conventions page, "Bad numbers: one boundary").
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -166,6 +168,26 @@ def as_theta(theta: npt.ArrayLike, name: str = "theta") -> FloatArray:
     return array
 
 
+def _plainly_rotation(rows: list[list[float]]) -> bool:
+    """Whether one 3 x 3 matrix (rows) is a rotation with a wide berth: |R^T R - I| at
+    most half of ``ROTATION_TOL`` and det above 1/2 (a near-orthonormal matrix has det
+    near +1 or -1), in Python floats. Anything else (NaN, inf, near the tolerance) is
+    left to the array check, so the answer never differs from it."""
+    (a, b, c), (d, e, f), (g, h, i) = rows
+    if not math.isfinite(a + b + c + d + e + f + g + h + i):
+        return False
+    error = max(
+        abs(a * a + d * d + g * g - 1.0),
+        abs(b * b + e * e + h * h - 1.0),
+        abs(c * c + f * f + i * i - 1.0),
+        abs(a * b + d * e + g * h),
+        abs(a * c + d * f + g * i),
+        abs(b * c + e * f + h * i),
+    )
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    return error <= 0.5 * ROTATION_TOL and det > 0.5
+
+
 def as_rotation(rotation: npt.ArrayLike, name: str = "R") -> FloatArray:
     """Rotation matrices of shape (..., 3, 3), orthonormal with det +1, or InputError."""
     try:
@@ -182,6 +204,8 @@ def as_rotation(rotation: npt.ArrayLike, name: str = "R") -> FloatArray:
             argument=name,
             value=rotation,
         )
+    if array.shape == (3, 3) and _plainly_rotation(array.tolist()):
+        return array  # one rotation far inside the tolerance (a control loop's case)
     if not np.all(np.isfinite(array)):
         raise InputError(f"{name} must be finite, got NaN or inf", argument=name, value=rotation)
     with np.errstate(over="ignore", invalid="ignore"):  # huge entries: error inf, refused

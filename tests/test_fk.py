@@ -395,7 +395,7 @@ def _fk_without_table(theta: np.ndarray, design: spm.SPMDesign) -> tuple[np.ndar
     reduced, common = fk_module._torsion_split(theta, design)
     R, done = fk_module._home_solve(reduced, design, None)
     if common is not None:
-        R = fk_module.rotation_about(design.u[0], common) @ R
+        R = fk_module.turned(fk_module.rotation_about(design.u[0], common), R)
     return R, done
 
 

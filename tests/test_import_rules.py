@@ -34,6 +34,7 @@ LAYERS: dict[str, int] = {
     "design": 0,
     "rotations": 0,
     "_checks": 0,
+    "_jit": 0,
     "kinematics": 1,
     "model": 2,
     "closure": 3,

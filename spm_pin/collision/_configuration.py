@@ -4,7 +4,7 @@ in the home assembly mode, in Python floats, and the check of a batch of q."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -17,10 +17,19 @@ from ..model.robot import CLOSURE_TOL
 from ._shapes import cross, dot, turn
 from .pairs import FloatArray
 
-__all__ = ["Legs", "as_q_batch", "leg_axes", "rotation_configuration", "theta_configuration"]
+__all__ = [
+    "KERNELS",
+    "Legs",
+    "as_q_batch",
+    "closed_angles",
+    "leg_axes",
+    "rotation_configuration",
+    "theta_configuration",
+]
 
 #: Per leg: u_i, w_i0, v_i0 as float tuples.
 Legs = tuple[tuple[tuple[float, ...], ...], ...]
+Vec = tuple[float, float, float]
 
 
 def leg_axes(design: SPMDesign) -> Legs:
@@ -51,22 +60,23 @@ def theta_configuration(theta: FloatArray, design: SPMDesign, legs: Legs) -> Flo
     return rotation_configuration(theta.tolist(), fk.R.tolist(), legs)
 
 
-def rotation_configuration(
-    theta: Sequence[float], rotation: Sequence[Sequence[float]], legs: Legs
-) -> FloatArray:
-    """The closed q of one theta (3 floats) whose home-mode platform rotation (rows)
-    is known: what :func:`theta_configuration` computes after its forward kinematics.
-
-    Raises:
-        ConvergenceError: the rotation does not fit the legs at theta.
-    """
-    columns = tuple(zip(*rotation, strict=True))
-    q: list[float] = []
+def closed_angles(
+    theta: Sequence[float], columns: Sequence[Sequence[float]], legs: Legs
+) -> tuple[Vec, Vec, Vec, float]:
+    """(theta_i, psi_i, chi_i) of each leg whose platform rotation has the
+    ``columns``, and the largest residual of the fit (a kernel: floats and tuples
+    only, compiled by :func:`spm_pin._jit.kernels` for the control loop)."""
+    out = []
     worst = 0.0
-    for angle, u, w0, v0 in zip(theta, *legs, strict=True):
+    for i in range(3):
+        angle, u, w0, v0 = theta[i], legs[0][i], legs[1][i], legs[2][i]
         # Columns of P^T R: R's columns turned by -theta about u.
         c, s = math.cos(angle), math.sin(angle)
-        p0, p1, p2 = (turn(u, c, -s, column) for column in columns)
+        p0, p1, p2 = (
+            turn(u, c, -s, columns[0]),
+            turn(u, c, -s, columns[1]),
+            turn(u, c, -s, columns[2]),
+        )
         # psi from the components of v0 and P^T R v0 normal to w0.
         x, y, z = v0
         target = (
@@ -102,14 +112,43 @@ def rotation_configuration(
             abs(m2[1] - t * y * z + s * x),
             abs(m2[2] - c - t * z * z),
         )
-        q += [angle, psi, chi]
+        out.append((angle, psi, chi))
+    return out[0], out[1], out[2], worst
+
+
+#: :func:`closed_angles` and the functions it calls, callees first: what
+#: :func:`spm_pin._jit.kernels` compiles.
+KERNELS = (dot, cross, turn, closed_angles)
+
+
+def rotation_configuration(
+    theta: Sequence[float],
+    rotation: Sequence[Sequence[float]],
+    legs: Legs,
+    kernel: Callable[..., tuple[Vec, Vec, Vec, float]] = closed_angles,
+) -> FloatArray:
+    """The closed q of one theta (3 floats) whose home-mode platform rotation (rows)
+    is known: what :func:`theta_configuration` computes after its forward kinematics.
+
+    ``kernel`` is :func:`closed_angles` or its compiled twin (same bits).
+
+    Raises:
+        ConvergenceError: the rotation does not fit the legs at theta.
+    """
+    r = rotation
+    columns = (
+        (r[0][0], r[1][0], r[2][0]),
+        (r[0][1], r[1][1], r[2][1]),
+        (r[0][2], r[1][2], r[2][2]),
+    )
+    first, second, third, worst = kernel((theta[0], theta[1], theta[2]), columns, legs)
     if not worst <= CLOSURE_TOL:  # pragma: no cover - FK certifies its solutions
         raise ConvergenceError(
             f"the platform rotation does not fit leg geometry at theta = "
             f"{np.degrees(theta).tolist()} deg: residual {worst:.3g}",
             data={"theta": np.asarray(theta), "R": np.asarray(rotation), "residual": worst},
         )
-    return np.array(q)
+    return np.array(first + second + third)
 
 
 def as_q_batch(q: npt.ArrayLike, nq: int) -> FloatArray:

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from .. import _jit
 from ..kinematics import _scalar
 from ..kinematics.jacobian import SINGULAR_TOL
 from .config import SafetyLimits
@@ -37,11 +38,26 @@ class FastStatic:
     """
 
     def __init__(self, robot: SPMRobot, checker: CollisionChecker, legs: Legs, margin: float):
+        from ..collision import _configuration
+        from ..kinematics import _fk_single
+
         self.robot = robot
         self.constants = _scalar.constants(robot.design)
         self._checker = checker
         self._legs = legs
         self._margin = margin
+        # The compiled kernels (numba, extra "fast"; else the Python functions, same
+        # bits): compiled, or read from numba's cache, here rather than in a cycle.
+        self._fk_kernels = _jit.kernels(_fk_single.KERNELS)
+        self._closed_angles = _jit.kernels(_configuration.KERNELS)["closed_angles"]
+        scalar = _jit.kernels(_scalar.KERNELS)  # inverse_kinematics uses them too
+        self._jacobian_parts = scalar["jacobian_parts"]
+        home = (0.0, 0.0, 0.0)
+        rotation = _scalar.fk_home(home, self.constants, self._fk_kernels)
+        if rotation is not None:
+            _scalar.ik_home(rotation, self.constants, scalar["ik_parts"])
+            self.measures(home)
+            self.collisions(home, rotation)
 
     @classmethod
     def of(cls, robot: object, limits: SafetyLimits) -> FastStatic | None:
@@ -63,10 +79,10 @@ class FastStatic:
         """(reachable, singularity margin, dexterity, platform rotation rows) of one
         finite goal [rad]; NaN measures and no rotation where unreachable."""
         k = self.constants
-        rotation = _scalar.fk_home(theta, k)
+        rotation = _scalar.fk_home(theta, k, self._fk_kernels)
         if rotation is None:
             return False, float("nan"), float("nan"), None
-        margin, dexterity = _scalar.measures(theta, rotation, k, SINGULAR_TOL)
+        margin, dexterity = _scalar.measures(theta, rotation, k, SINGULAR_TOL, self._jacobian_parts)
         return True, margin, dexterity, rotation
 
     def collisions(
@@ -77,6 +93,6 @@ class FastStatic:
 
         if rotation is None:
             return ()
-        q = rotation_configuration(theta, rotation, self._legs)
+        q = rotation_configuration(theta, rotation, self._legs, self._closed_angles)
         pairs = self._checker.collisions(q, margin=self._margin)
         return tuple((str(a), str(b)) for a, b in pairs)

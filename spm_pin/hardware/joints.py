@@ -94,7 +94,7 @@ class JointMap:
                 servo's extended-position range (+-1,048,575 pulses).
         """
         values = np.asarray(theta, dtype=float)
-        if values.shape != (3,) or not np.all(np.isfinite(values)):
+        if values.shape != (3,) or not all(math.isfinite(x) for x in values.tolist()):
             raise InputError(
                 f"theta must be 3 finite angles [rad], got {theta!r}", argument="theta", value=theta
             )

@@ -208,11 +208,14 @@ class OrientationStream:
         from .._checks import as_rotation
 
         rotation = as_rotation(R, "R")
-        ik = inverse_kinematics(rotation[None], self.sync.design)
-        legs = [int(i) + 1 for i in np.flatnonzero(~np.asarray(ik.leg_reachable[0]))]
-        if legs:
-            raise UnreachableError(f"leg(s) {legs} cannot close", value=rotation)
-        theta = np.asarray(ik.theta[0], dtype=float)
+        if rotation.ndim != 2:
+            raise InputError(
+                f"R must be one rotation matrix (3, 3), got shape {rotation.shape}",
+                argument="R",
+                value=R,
+            )
+        # One rotation: the single-input path (compiled where the guard compiled it).
+        theta = inverse_kinematics(rotation, self.sync.design).theta
         goal = self.sync.goal if self.sync.goal is not None else np.zeros(3)
         # Each input modulo a turn, nearest the present goal (the gaps stay in order
         # when every input moves less than half a turn).

@@ -96,7 +96,76 @@ def _rotate(axis: Vec, angle: float, x: Vec) -> Vec:
     )
 
 
-def home_rotation(
+def _row(a: float, b: float, c: float, m: Mat) -> Vec:
+    """Row (a, b, c) @ m."""
+    return (
+        a * m[0][0] + b * m[1][0] + c * m[2][0],
+        a * m[0][1] + b * m[1][1] + c * m[2][1],
+        a * m[0][2] + b * m[1][2] + c * m[2][2],
+    )
+
+
+def _gram(V1: Mat, V2: Mat, c12: float) -> Mat:
+    """M1[i][j] = V1_i . V2_j, less c12 at (0, 0): the closure of legs 1 and 2."""
+    return (
+        (_dot(V1[0], V2[0]) - c12, _dot(V1[0], V2[1]), _dot(V1[0], V2[2])),
+        (_dot(V1[1], V2[0]), _dot(V1[1], V2[1]), _dot(V1[1], V2[2])),
+        (_dot(V1[2], V2[0]), _dot(V1[2], V2[1]), _dot(V1[2], V2[2])),
+    )
+
+
+def _second(V1: Mat, V2: Mat, w3: Vec, pa: float, pb: float, pd: float, ca2: float) -> Mat:
+    """M2: the closure of leg 3 (its platform axis as a combination of the others)."""
+    x0, x1, x2 = _cross(V2[0], w3), _cross(V2[1], w3), _cross(V2[2], w3)
+    rows = []
+    for i in range(3):
+        r0 = pd * _dot(V1[i], x0) + pa * _dot(w3, V1[i])
+        r1 = pd * _dot(V1[i], x1)
+        r2 = pd * _dot(V1[i], x2)
+        if i == 0:
+            r0 = r0 + pb * _dot(w3, V2[0]) - ca2
+            r1 = r1 + pb * _dot(w3, V2[1])
+            r2 = r2 + pb * _dot(w3, V2[2])
+        rows.append((r0, r1, r2))
+    return (rows[0], rows[1], rows[2])
+
+
+def _half(m: Mat, c1: float, s1: float, c2: float, s2: float) -> Vec:
+    """(f, d f / d phi1, d f / d phi2) of one closure equation."""
+    r0 = m[0][0] + m[0][1] * c2 + m[0][2] * s2
+    r1 = m[1][0] + m[1][1] * c2 + m[1][2] * s2
+    r2 = m[2][0] + m[2][1] * c2 + m[2][2] * s2
+    t0 = m[0][2] * c2 - m[0][1] * s2
+    t1 = m[1][2] * c2 - m[1][1] * s2
+    t2 = m[2][2] * c2 - m[2][1] * s2
+    return r0 + c1 * r1 + s1 * r2, c1 * r2 - s1 * r1, t0 + c1 * t1 + s1 * t2
+
+
+def _residual(
+    M1: Mat, M2: Mat, phi1: float, phi2: float
+) -> tuple[float, float, float, float, float, float]:
+    """(f0, f1, d f0/d phi1, d f1/d phi1, d f0/d phi2, d f1/d phi2)."""
+    c1, s1, c2, s2 = math.cos(phi1), math.sin(phi1), math.cos(phi2), math.sin(phi2)
+    f0, a0, b0 = _half(M1, c1, s1, c2, s2)
+    f1, a1, b1 = _half(M2, c1, s1, c2, s2)
+    return f0, f1, a0, a1, b0, b1
+
+
+def _step(M1: Mat, M2: Mat, phi1: float, phi2: float) -> tuple[float, float]:
+    """One damped Newton step of the two closure equations."""
+    f0, f1, j10, j11, j20, j21 = _residual(M1, M2, phi1, phi2)
+    det = j10 * j21 - j11 * j20
+    if det == 0.0:
+        return phi1, phi2
+    d1 = (j21 * f0 - j20 * f1) / det
+    d2 = (j10 * f1 - j11 * f0) / det
+    if not (math.isfinite(d1) and math.isfinite(d2)):
+        return phi1, phi2
+    scale = 1.0 / max(abs(d1), abs(d2), 1.0)  # steps beyond one radian are damped
+    return phi1 - scale * d1, phi2 - scale * d2
+
+
+def _home_solution(
     theta: Sequence[float],
     constants: SingleConstants,
     newton_steps: int,
@@ -104,13 +173,8 @@ def home_rotation(
     polished: float,
     residual_tol: float,
     sign_tol: float,
-) -> Mat | None:
-    """R (rows) of the home mode at one reduced input ``theta`` [rad], or None.
-
-    The method and the tolerances are those of the batch path in :mod:`.fk`
-    (``_setup``, ``_newton``, ``_certify``): None where Newton from the home slope
-    does not certify a home-mode solution.
-    """
+) -> tuple[bool, Mat]:
+    """(certified, R) of :func:`home_rotation` (R is zeros where not certified)."""
     k = constants
     u, w0, v0, body_inv, slope = k.u, k.w0, k.v0, k.body_inv, k.slope
     pa, pb, pd = k.combination
@@ -129,79 +193,147 @@ def home_rotation(
                 (sa2 * q[0], sa2 * q[1], sa2 * q[2]),
             )
         )
-    V1, V2 = cols  # V[c] is column c
+    V1, V2 = cols[0], cols[1]  # V[c] is column c
     w3 = w[2]
-    M1 = [[_dot(V1[i], V2[j]) for j in range(3)] for i in range(3)]
-    M1[0][0] -= c12
-    crossed = [_cross(V2[j], w3) for j in range(3)]
-    M2 = [[pd * _dot(V1[i], crossed[j]) for j in range(3)] for i in range(3)]
-    for i in range(3):
-        M2[i][0] += pa * _dot(w3, V1[i])
-    for j in range(3):
-        M2[0][j] += pb * _dot(w3, V2[j])
-    M2[0][0] -= ca2
-    Ms = (M1, M2)
-
-    def residual(phi1: float, phi2: float) -> tuple[float, float, float, float, float, float]:
-        c1, s1, c2, s2 = math.cos(phi1), math.sin(phi1), math.cos(phi2), math.sin(phi2)
-        out = []
-        for m in Ms:
-            r = [m[i][0] + m[i][1] * c2 + m[i][2] * s2 for i in range(3)]
-            t = [m[i][2] * c2 - m[i][1] * s2 for i in range(3)]
-            out += [
-                r[0] + c1 * r[1] + s1 * r[2],  # f_k
-                c1 * r[2] - s1 * r[1],  # d f_k / d phi1
-                t[0] + c1 * t[1] + s1 * t[2],  # d f_k / d phi2
-            ]
-        f0, a0, b0, f1, a1, b1 = out
-        return f0, f1, a0, a1, b0, b1
-
-    def step(phi1: float, phi2: float) -> tuple[float, float]:
-        f0, f1, j10, j11, j20, j21 = residual(phi1, phi2)
-        det = j10 * j21 - j11 * j20
-        if det == 0.0:
-            return phi1, phi2
-        d1 = (j21 * f0 - j20 * f1) / det
-        d2 = (j10 * f1 - j11 * f0) / det
-        if not (math.isfinite(d1) and math.isfinite(d2)):
-            return phi1, phi2
-        scale = 1.0 / max(abs(d1), abs(d2), 1.0)  # steps beyond one radian are damped
-        return phi1 - scale * d1, phi2 - scale * d2
-
+    M1 = _gram(V1, V2, c12)
+    M2 = _second(V1, V2, w3, pa, pb, pd, ca2)
     phi1 = _dot(theta, slope[0])
     phi2 = _dot(theta, slope[1])
     for _ in range(newton_steps + 1):
-        phi1, phi2 = step(phi1, phi2)
-    f0, f1 = residual(phi1, phi2)[:2]
-    res = max(abs(f0), abs(f1))
+        phi1, phi2 = _step(M1, M2, phi1, phi2)
+    r6 = _residual(M1, M2, phi1, phi2)
+    res = max(abs(r6[0]), abs(r6[1]))
     for _ in range(polish_extra):
         if not res > polished:
             break
-        phi1, phi2 = step(phi1, phi2)
-        f0, f1 = residual(phi1, phi2)[:2]
-        res = max(abs(f0), abs(f1))
+        phi1, phi2 = _step(M1, M2, phi1, phi2)
+        r6 = _residual(M1, M2, phi1, phi2)
+        res = max(abs(r6[0]), abs(r6[1]))
+    zero = (0.0, 0.0, 0.0)
     if not res <= residual_tol:
-        return None
+        return False, (zero, zero, zero)
     c1, s1, c2, s2 = math.cos(phi1), math.sin(phi1), math.cos(phi2), math.sin(phi2)
-    v1 = tuple(V1[0][k] + V1[1][k] * c1 + V1[2][k] * s1 for k in range(3))
-    v2 = tuple(V2[0][k] + V2[1][k] * c2 + V2[2][k] * s2 for k in range(3))
+    v1 = (
+        V1[0][0] + V1[1][0] * c1 + V1[2][0] * s1,
+        V1[0][1] + V1[1][1] * c1 + V1[2][1] * s1,
+        V1[0][2] + V1[1][2] * c1 + V1[2][2] * s1,
+    )
+    v2 = (
+        V2[0][0] + V2[1][0] * c2 + V2[2][0] * s2,
+        V2[0][1] + V2[1][1] * c2 + V2[2][1] * s2,
+        V2[0][2] + V2[1][2] * c2 + V2[2][2] * s2,
+    )
     v12 = _cross(v1, v2)
     # R = world @ body^-1, world with columns v1, v2, v1 x v2.
-    R = tuple(
-        tuple(
-            v1[r] * body_inv[0][c] + v2[r] * body_inv[1][c] + v12[r] * body_inv[2][c]
-            for c in range(3)
-        )
-        for r in range(3)
+    R = (
+        _row(v1[0], v2[0], v12[0], body_inv),
+        _row(v1[1], v2[1], v12[1], body_inv),
+        _row(v1[2], v2[2], v12[2], body_inv),
     )
     # Home sign rule: every b_ii = (u_i x w_i) . v_i > 0 and det A of the home sign.
     A = []
     for i in range(3):
-        v = tuple(_dot(R[r], v0[i]) for r in range(3))
+        v = (_dot(R[0], v0[i]), _dot(R[1], v0[i]), _dot(R[2], v0[i]))
         if not _dot(_cross(u[i], w[i]), v) > sign_tol:
-            return None
+            return False, (zero, zero, zero)
         A.append(_cross(w[i], v))
     det_a = _dot(A[0], _cross(A[1], A[2]))
     if not (abs(det_a) > sign_tol and math.copysign(1.0, det_a) == home_sign):
-        return None
-    return R  # type: ignore[return-value]
+        return False, (zero, zero, zero)
+    return True, R
+
+
+def home_rotation(
+    theta: Sequence[float],
+    constants: SingleConstants,
+    newton_steps: int,
+    polish_extra: int,
+    polished: float,
+    residual_tol: float,
+    sign_tol: float,
+) -> Mat | None:
+    """R (rows) of the home mode at one reduced input ``theta`` [rad], or None.
+
+    The method and the tolerances are those of the batch path in :mod:`.fk`
+    (``_setup``, ``_newton``, ``_certify``): None where Newton from the home slope
+    does not certify a home-mode solution.
+    """
+    ok, R = _home_solution(
+        theta, constants, newton_steps, polish_extra, polished, residual_tol, sign_tol
+    )
+    return R if ok else None
+
+
+def turned_rows(c: float, s: float, axis: Vec, outer: Mat, R: Mat) -> Mat:
+    """Rot(axis, angle) @ R for the angle of cosine ``c`` and sine ``s``, in the order
+    of :func:`~spm_pin.kinematics._common.rotation_about` and
+    :func:`~spm_pin.kinematics.fk.turned` (same bits)."""
+    x, y, z = axis
+    one_c = 1.0 - c
+    # c I + s [axis]x + (1 - c) axis axis^T, entry by entry.
+    t = (
+        (
+            c + s * 0.0 + one_c * outer[0][0],
+            c * 0.0 + s * -z + one_c * outer[0][1],
+            c * 0.0 + s * y + one_c * outer[0][2],
+        ),
+        (
+            c * 0.0 + s * z + one_c * outer[1][0],
+            c + s * 0.0 + one_c * outer[1][1],
+            c * 0.0 + s * -x + one_c * outer[1][2],
+        ),
+        (
+            c * 0.0 + s * -y + one_c * outer[2][0],
+            c * 0.0 + s * x + one_c * outer[2][1],
+            c + s * 0.0 + one_c * outer[2][2],
+        ),
+    )
+    rows = []
+    for i in range(3):
+        rows.append(
+            (
+                (t[i][0] * R[0][0] + t[i][1] * R[1][0]) + t[i][2] * R[2][0],
+                (t[i][0] * R[0][1] + t[i][1] * R[1][1]) + t[i][2] * R[2][1],
+                (t[i][0] * R[0][2] + t[i][1] * R[1][2]) + t[i][2] * R[2][2],
+            )
+        )
+    return (rows[0], rows[1], rows[2])
+
+
+def home_turned(
+    theta: Sequence[float],
+    constants: SingleConstants,
+    newton_steps: int,
+    polish_extra: int,
+    polished: float,
+    residual_tol: float,
+    sign_tol: float,
+    c: float,
+    s: float,
+    axis: Vec,
+    outer: Mat,
+) -> Mat | None:
+    """:func:`home_rotation` at the reduced input, turned by :func:`turned_rows`."""
+    ok, R = _home_solution(
+        theta, constants, newton_steps, polish_extra, polished, residual_tol, sign_tol
+    )
+    return turned_rows(c, s, axis, outer, R) if ok else None
+
+
+#: :func:`home_rotation`, :func:`home_turned` and the functions they call, callees
+#: first: what :func:`spm_pin._jit.kernels` compiles.
+KERNELS = (
+    _cross,
+    _dot,
+    _rotate,
+    _row,
+    _gram,
+    _second,
+    _half,
+    _residual,
+    _step,
+    _home_solution,
+    home_rotation,
+    turned_rows,
+    home_turned,
+)

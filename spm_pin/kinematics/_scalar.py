@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -106,9 +106,16 @@ def _sum3(a0: float, a1: float, a2: float) -> float:
 def _platform_axes(R: Sequence[Sequence[float]], v0: Mat) -> Mat:
     """Rows v_i = R v_i0, as ``np.einsum("...jk,ik->...ij", R, v0)`` computes them
     (its sum of products adds the first and last terms first)."""
-    return tuple(  # type: ignore[return-value]
-        tuple((R[j][0] * v[0] + R[j][2] * v[2]) + R[j][1] * v[1] for j in range(3)) for v in v0
-    )
+    rows = []
+    for v in v0:
+        rows.append(
+            (
+                (R[0][0] * v[0] + R[0][2] * v[2]) + R[0][1] * v[1],
+                (R[1][0] * v[0] + R[1][2] * v[2]) + R[1][1] * v[1],
+                (R[2][0] * v[0] + R[2][2] * v[2]) + R[2][1] * v[1],
+            )
+        )
+    return (rows[0], rows[1], rows[2])
 
 
 def _wrap(angle: float) -> float:
@@ -132,49 +139,77 @@ class HomeIK(NamedTuple):
 _REACH_TOL = 1e-12
 
 
-def ik_home(R: Sequence[Sequence[float]], k: ScalarConstants) -> HomeIK:
-    """``inverse_kinematics(R)`` (mode 0, no ``theta_near``) of one checked rotation
-    (rows), bit for bit."""
-    v = _platform_axes(R, k.v0)
-    p = tuple(_sum3(v[i][0] * a[0], v[i][1] * a[1], v[i][2] * a[2]) for i, a in enumerate(k.ik_a))
-    q = tuple(
-        _sum3(v[i][0] * c[0], v[i][1] * c[1], v[i][2] * c[2]) for i, c in enumerate(k.ik_uxw0)
-    )
-    s = tuple(
-        k.ik_uw0[i] * _sum3(v[i][0] * u[0], v[i][1] * u[1], v[i][2] * u[2]) - k.cos_a2
-        for i, u in enumerate(k.u)
-    )
+def ik_parts(
+    R: Sequence[Sequence[float]],
+    v0: Mat,
+    ik_a: Mat,
+    ik_uxw0: Mat,
+    ik_uw0: Vec,
+    u: Mat,
+    cos_a2: float,
+) -> tuple[Vec, Vec, Vec, Vec, tuple[bool, bool, bool]]:
+    """The float part of :func:`ik_home` (a kernel: floats and tuples only): each
+    leg's P, Q, S, the root of P^2 + Q^2 - S^2 (NaN where the leg cannot close) and
+    whether it closes."""
+    v = _platform_axes(R, v0)
+    p = []
+    q = []
+    s = []
     ok = []
     root = []
     for i in range(3):
+        a, c, w = ik_a[i], ik_uxw0[i], u[i]
+        p.append(_sum3(v[i][0] * a[0], v[i][1] * a[1], v[i][2] * a[2]))
+        q.append(_sum3(v[i][0] * c[0], v[i][1] * c[1], v[i][2] * c[2]))
+        s.append(ik_uw0[i] * _sum3(v[i][0] * w[0], v[i][1] * w[1], v[i][2] * w[2]) - cos_a2)
         pp, qq, ss = p[i] * p[i], q[i] * q[i], s[i] * s[i]
         scale = pp + qq + ss
         disc = pp + qq - ss
         good = disc >= -_REACH_TOL * max(scale, 1.0)
         ok.append(good)
         root.append(math.sqrt(max(disc, 0.0)) if good else math.nan)
+    return (
+        (p[0], p[1], p[2]),
+        (q[0], q[1], q[2]),
+        (s[0], s[1], s[2]),
+        (root[0], root[1], root[2]),
+        (ok[0], ok[1], ok[2]),
+    )
+
+
+def ik_home(
+    R: Sequence[Sequence[float]],
+    k: ScalarConstants,
+    parts: Callable[..., tuple[Vec, Vec, Vec, Vec, tuple[bool, bool, bool]]] | None = None,
+) -> HomeIK:
+    """``inverse_kinematics(R)`` (mode 0, no ``theta_near``) of one checked rotation
+    (rows), bit for bit. ``parts`` is :func:`ik_parts` (default) or its compiled
+    twin."""
+    p, q, s, root, ok = (parts or ik_parts)(R, k.v0, k.ik_a, k.ik_uxw0, k.ik_uw0, k.u, k.cos_a2)
     angles = np.arctan2([*q, *root], [*p, -s[0], -s[1], -s[2]]).tolist()
-    theta = tuple(_wrap(angles[i] - angles[i + 3]) for i in range(3))
-    return HomeIK(theta, tuple(root), tuple(ok), p, q, s)  # type: ignore[arg-type]
+    theta = (
+        _wrap(angles[0] - angles[3]),
+        _wrap(angles[1] - angles[4]),
+        _wrap(angles[2] - angles[5]),
+    )
+    return HomeIK(theta, root, ok, p, q, s)
 
 
 # ------------------------------------------------------------------ forward
-def fk_home(theta: Sequence[float], k: ScalarConstants) -> Mat | None:
+def fk_home(
+    theta: Sequence[float],
+    k: ScalarConstants,
+    kernels: Mapping[str, Callable[..., Mat | None]] | None = None,
+) -> Mat | None:
     """``forward_kinematics(theta)``'s R (rows) of one input (3 finite floats), or
-    None where it is not ``reachable``; bit for bit."""
+    None where it is not ``reachable``; bit for bit. ``kernels``: the functions
+    ``home_rotation`` and ``home_turned`` of :mod:`._fk_single` (default) or their
+    compiled twins (:func:`spm_pin._jit.kernels` of its ``KERNELS``)."""
+    from . import _fk_single
     from . import fk as batch
-    from ._fk_single import home_rotation
 
     t0, t1, t2 = float(theta[0]), float(theta[1]), float(theta[2])
-    if k.coaxial:
-        rep1 = t0 + _wrap(t1 - t0)
-        rep2 = t0 + _wrap(t2 - t0)
-        common = _sum3(t0, rep1, rep2) / 3.0
-        reduced = [t0 - common, rep1 - common, rep2 - common]
-    else:
-        reduced = [t0, t1, t2]
-    single = home_rotation(
-        reduced,
+    args = (
         batch._single_constants(k.design),
         batch._NEWTON_STEPS_FAST,
         batch._POLISH_EXTRA,
@@ -182,21 +217,21 @@ def fk_home(theta: Sequence[float], k: ScalarConstants) -> Mat | None:
         batch.RESIDUAL_TOL,
         batch._SIGN_TOL,
     )
+    if k.coaxial:
+        rep1 = t0 + _wrap(t1 - t0)
+        rep2 = t0 + _wrap(t2 - t0)
+        common = _sum3(t0, rep1, rep2) / 3.0
+        reduced = (t0 - common, rep1 - common, rep2 - common)
+        c, s = float(np.cos(common)), float(np.sin(common))  # numpy's, as rotation_about
+        solve = _fk_single.home_turned if kernels is None else kernels["home_turned"]
+        single = solve(reduced, *args, c, s, k.turn_axis, k.turn_outer)
+    else:
+        solve = _fk_single.home_rotation if kernels is None else kernels["home_rotation"]
+        single = solve((t0, t1, t2), *args)
     if single is None:  # not settled here: the batch path decides
         fk = batch.forward_kinematics(np.array([t0, t1, t2]), k.design)
         return _mat(fk.R) if bool(fk.reachable) else None
-    if not k.coaxial:
-        return single
-    c, s = np.cos(common), np.sin(common)  # numpy's, as rotation_about
-    x, y, z = k.turn_axis
-    o = k.turn_outer
-    cross_k = ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
-    one_c = 1.0 - c
-    turn = [
-        [c * (1.0 if i == j else 0.0) + s * cross_k[i][j] + one_c * o[i][j] for j in range(3)]
-        for i in range(3)
-    ]
-    return _mat((np.array(turn)[None] @ np.array(single)[None])[0])
+    return single
 
 
 # ------------------------------------------------------------------ measures
@@ -210,30 +245,67 @@ def _norm(a: Vec) -> float:
 
 def proximal_axes_of(theta: Sequence[float], k: ScalarConstants) -> Mat:
     """Rows w_i(theta_i), as :func:`~spm_pin.kinematics._common.proximal_axes`."""
+    return _proximal(theta, k.w_along, k.w_rest, k.w_cross)
+
+
+def _proximal(theta: Sequence[float], w_along: Mat, w_rest: Mat, w_cross: Mat) -> Mat:
     rows = []
     for i in range(3):
         c, s = math.cos(theta[i]), math.sin(theta[i])
-        along, rest, cross = k.w_along[i], k.w_rest[i], k.w_cross[i]
-        rows.append(tuple(along[j] + c * rest[j] + s * cross[j] for j in range(3)))
-    return tuple(rows)  # type: ignore[return-value]
+        along, rest, cross = w_along[i], w_rest[i], w_cross[i]
+        rows.append(
+            (
+                along[0] + c * rest[0] + s * cross[0],
+                along[1] + c * rest[1] + s * cross[1],
+                along[2] + c * rest[2] + s * cross[2],
+            )
+        )
+    return (rows[0], rows[1], rows[2])
 
 
-def measures(
-    theta: Sequence[float], R: Sequence[Sequence[float]], k: ScalarConstants, tol: float
-) -> tuple[float, float]:
-    """``(singularity_margin, dexterity)`` of ``jacobian(theta, R=R, tol=tol)`` at
-    one input with its (reachable) platform rotation, bit for bit."""
-    w = proximal_axes_of(theta, k)
-    v = _platform_axes(R, k.v0)
-    uxw = [_cross(k.u[i], w[i]) for i in range(3)]
-    b = [_sum3(uxw[i][0] * v[i][0], uxw[i][1] * v[i][1], uxw[i][2] * v[i][2]) for i in range(3)]
-    A = [_cross(w[i], v[i]) for i in range(3)]
-    leg_margin = min(abs(b[i]) / _norm(uxw[i]) for i in range(3))
+def jacobian_parts(
+    theta: Sequence[float],
+    R: Sequence[Sequence[float]],
+    u: Mat,
+    v0: Mat,
+    w_along: Mat,
+    w_rest: Mat,
+    w_cross: Mat,
+) -> tuple[float, Mat, Mat, Vec]:
+    """The float part of :func:`measures` (a kernel: floats and tuples only): the
+    legs' singularity margin, the rows of A normalised, the rows of A, and b_ii."""
+    w = _proximal(theta, w_along, w_rest, w_cross)
+    v = _platform_axes(R, v0)
+    legs = []
+    b = []
+    A = []
     unit = []
-    for row in A:
+    for i in range(3):
+        uxw = _cross(u[i], w[i])
+        b.append(_sum3(uxw[0] * v[i][0], uxw[1] * v[i][1], uxw[2] * v[i][2]))
+        legs.append(abs(b[i]) / _norm(uxw))
+        row = _cross(w[i], v[i])
+        A.append(row)
         n = _norm(row)
         d = n if n > 0 else 1.0
         unit.append((row[0] / d, row[1] / d, row[2] / d))
+    leg_margin = min(legs[0], legs[1], legs[2])
+    return leg_margin, (unit[0], unit[1], unit[2]), (A[0], A[1], A[2]), (b[0], b[1], b[2])
+
+
+def measures(
+    theta: Sequence[float],
+    R: Sequence[Sequence[float]],
+    k: ScalarConstants,
+    tol: float,
+    parts: Callable[..., tuple[float, Mat, Mat, Vec]] | None = None,
+) -> tuple[float, float]:
+    """``(singularity_margin, dexterity)`` of ``jacobian(theta, R=R, tol=tol)`` at
+    one input with its (reachable) platform rotation, bit for bit. ``parts`` is
+    :func:`jacobian_parts` (default) or its compiled twin."""
+    leg_margin, unit, A, b = (parts or jacobian_parts)(
+        (theta[0], theta[1], theta[2]), R, k.u, k.v0, k.w_along, k.w_rest, k.w_cross
+    )
     a_margin = _singular_values(np.array(unit))[-1]
     margin = min(leg_margin, a_margin)
     if leg_margin <= tol or a_margin <= tol:  # type I or II: dexterity 0
@@ -241,6 +313,11 @@ def measures(
     diagonal = [[b[i] * (1.0 if i == j else 0.0) for j in range(3)] for i in range(3)]
     sigma = _singular_values(_solve(np.array(A), np.array(diagonal)))
     return margin, (sigma[-1] / sigma[0] if sigma[0] > 0 else 0.0)
+
+
+#: :func:`jacobian_parts`, :func:`ik_parts` and the functions they call, callees first: what
+#: :func:`spm_pin._jit.kernels` compiles.
+KERNELS = (_sum3, _cross, _norm, _platform_axes, _proximal, jacobian_parts, ik_parts)
 
 
 def _singular_values(matrix: FloatArray) -> list[float]:

@@ -568,7 +568,7 @@ def forward_kinematics_all(theta: npt.ArrayLike, design: SPMDesign | None = None
     R = out.R
     if common is not None:
         turn = rotation_about(design.u[0], common.reshape(-1))
-        R = turn[:, None] @ R
+        R = turned(turn[:, None], R)
     w = proximal_axes(theta_in, design)
     v = np.einsum("...jk,ik->...ij", R, design.v0)
     valid = out.valid.reshape(*shape, MAX_ASSEMBLY_MODES)
@@ -638,7 +638,7 @@ def forward_kinematics(
             sub_ref = None if local_ref is None else local_ref[todo]
             R[todo], done[todo] = _home_solve(reduced[todo], design, sub_ref)
     if turn is not None:
-        R = turn @ R
+        R = turned(turn, R)
     w = proximal_axes(flat, design)
     v, residual = _closure(R, w, design)
     return FKResult(
@@ -649,6 +649,17 @@ def forward_kinematics(
         reachable=done.reshape(shape),
         residual=residual.reshape(shape),
     )
+
+
+def turned(turn: FloatArray, R: FloatArray) -> FloatArray:
+    """``turn @ R`` for stacks of 3 x 3 matrices, element by element: (i, j) is
+    ``(t_i0 r_0j + t_i1 r_1j) + t_i2 r_2j``, without fused multiply-adds, so that the
+    single-input float code (:func:`~._fk_single.turned_rows`) gives the same bits
+    (a BLAS product rounds in an order of its own)."""
+    result: FloatArray = (
+        turn[..., :, 0, None] * R[..., None, 0, :] + turn[..., :, 1, None] * R[..., None, 1, :]
+    ) + turn[..., :, 2, None] * R[..., None, 2, :]
+    return result
 
 
 @functools.lru_cache(maxsize=32)

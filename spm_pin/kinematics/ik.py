@@ -22,6 +22,7 @@ import dataclasses
 import numpy as np
 import numpy.typing as npt
 
+from .. import _jit
 from ..design import SPMDesign
 from ..errors import InputError, UnreachableError
 from . import _scalar
@@ -184,7 +185,13 @@ def inverse_kinematics(
 
 def _home_one(rotation: FloatArray, design: SPMDesign, given: npt.ArrayLike) -> IKResult:
     """``inverse_kinematics`` of one rotation in the home working mode, in floats."""
-    solved = _scalar.ik_home(rotation.tolist(), _scalar.constants(design))
+    rows = rotation.tolist()
+    compiled = _jit.ready(_scalar.KERNELS)  # where a control loop compiled them
+    solved = _scalar.ik_home(
+        (tuple(rows[0]), tuple(rows[1]), tuple(rows[2])),
+        _scalar.constants(design),
+        None if compiled is None else compiled["ik_parts"],
+    )
     if not all(solved.leg_reachable):
         leg = solved.leg_reachable.index(False) + 1
         p, q, s = solved.p[leg - 1], solved.q[leg - 1], solved.s[leg - 1]

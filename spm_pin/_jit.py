@@ -1,0 +1,95 @@
+"""Optional compilation of the single-input float kernels with numba (extra ``fast``).
+
+The control loop's single-input code (:mod:`spm_pin.kinematics._fk_single`, the
+closed configuration of :mod:`spm_pin.collision._configuration`) is written in
+Python floats and tuples, in a form that numba compiles unchanged: the same
+operations in the same order, no fused multiply-adds (numba does not contract them
+unless ``fastmath`` is asked for, and it is not), ``math`` functions from the same C
+library. The compiled kernels therefore give the Python kernels' bits, which are the
+batch code's bits; ``tests/test_jit`` compares them.
+
+:func:`kernels` compiles a list of functions, callees first, each one a clone of the
+Python function whose globals see the compiled callees, so the Python functions
+themselves stay as they are (numba is imported only when kernels are asked for: the
+command line does not pay for it); :func:`ready` gives them to library functions
+that use them once something (the guard of a control loop) has compiled them.
+Without numba, or with the environment variable
+``SPM_PIN_JIT=0``, it gives the Python functions: same results, slower.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import types
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
+
+__all__ = ["ENV_VARIABLE", "available", "kernels", "ready"]
+
+#: Set to ``0`` to run the Python kernels even where numba is installed.
+ENV_VARIABLE = "SPM_PIN_JIT"
+
+_lock = threading.Lock()
+_cache: dict[tuple[Callable[..., Any], ...], dict[str, Callable[..., Any]]] = {}
+
+
+def _numba() -> Any | None:
+    if os.environ.get(ENV_VARIABLE, "1").strip() == "0":
+        return None
+    try:
+        import numba
+    except ImportError:
+        return None
+    return numba
+
+
+def available() -> bool:
+    """Whether :func:`kernels` compiles (numba installed and not switched off)."""
+    return _numba() is not None
+
+
+def kernels(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., Any]]:
+    """The functions compiled by numba (``njit``, cached on disk), by name.
+
+    Args:
+        functions: Plain Python functions, each after the functions it calls: a
+            compiled function calls the compiled versions of those before it.
+
+    Returns:
+        Name -> compiled function, or name -> the function itself where numba is
+        not available (see :func:`available`). Compiled on first use of each.
+    """
+    key = tuple(functions)
+    with _lock:
+        found = _cache.get(key)
+        if found is not None:
+            return found
+        numba = _numba()
+        out: dict[str, Callable[..., Any]] = {}
+        for function in functions:
+            if numba is None:
+                out[function.__name__] = function
+                continue
+            namespace = {**function.__globals__, **out}
+            clone = types.FunctionType(
+                function.__code__,
+                namespace,
+                function.__name__,
+                function.__defaults__,
+                function.__closure__,
+            )
+            clone.__qualname__ = function.__qualname__
+            clone.__module__ = function.__module__
+            with warnings.catch_warnings():  # a read-only install cannot cache: fine
+                warnings.simplefilter("ignore", numba.NumbaWarning)
+                out[function.__name__] = numba.njit(cache=True)(clone)
+        _cache[key] = out
+        return out
+
+
+def ready(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., Any]] | None:
+    """What :func:`kernels` gave for these functions, if it was called in this
+    process; else None (nothing is compiled or imported here)."""
+    return _cache.get(tuple(functions))
