@@ -418,6 +418,11 @@ def figures_hardware(data: Mapping[str, Any]) -> list[Figure]:
             peer=results["control_cycle"]["batch"],
             targets=("control_cycle_median",),
         ),
+        timed(
+            "control_cycle_python",
+            "hardware: the same cycle, Python kernels (without the fast extra)",
+            results["control_cycle_python"]["fast"],
+        ),
     ]
 
 
@@ -509,10 +514,12 @@ def figures_remote(data: Mapping[str, Any]) -> list[Figure]:
 
 
 def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
-    """Env steps of spm_pin/Orient-v0; the peer is SyncVectorEnv over single envs."""
+    """Env steps of spm_pin/Orient-v0 (peer: SyncVectorEnv over single envs) and of
+    spm_pin/OrientDynamic-v0 (peer: the task on MuJoCo, built the usual way); the
+    dynamic environment's physics beside the constrained simulator."""
     results, peer = data["results"], data["peer"]
     vector = results["vector"]
-    return [
+    rows = [
         timed(
             "vector_step",
             f"envs: Orient-v0 batched step, per env step (N = {vector['n']:,})",
@@ -525,6 +532,76 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
         ),
         timed("single_step", "envs: Orient-v0 single env step", results["single"]),
     ]
+    dynamic, mj = data.get("dynamic"), data.get("mujoco_peer")
+    if dynamic is None:  # a run from before the dynamic environment's rows
+        return rows
+    ok = bool(mj and mj.get("available"))
+    mj_vector = mj["vector"] if ok and mj else None
+    mj_single = mj["single"] if ok and mj else None
+    mj_name = f"MuJoCo env, SyncVectorEnv, N = {mj_vector['n']}" if mj_vector else None
+    rows += [
+        timed(
+            "dynamic_vector_step",
+            f"envs: OrientDynamic-v0 batched step, per env step (N = {dynamic['vector']['n']:,})",
+            dynamic["vector"],
+            per_item=True,
+            peer_name=mj_name,
+            peer=mj_vector,
+        ),
+        timed(
+            "dynamic_vector_step_same_n",
+            f"envs: OrientDynamic-v0 batched step, per env step "
+            f"(N = {dynamic['vector_peer_n']['n']:,})",
+            dynamic["vector_peer_n"],
+            per_item=True,
+            peer_name=mj_name,
+            peer=mj_vector,
+        ),
+        timed(
+            "dynamic_single_step",
+            "envs: OrientDynamic-v0 single env step",
+            dynamic["single"],
+            peer_name="MuJoCo env",
+            peer=mj_single,
+        ),
+        valued(
+            "dynamic_closure",
+            "envs: OrientDynamic-v0 loop-closure error after the timed steps, max",
+            dynamic["closure_error"],
+            unit="rad",
+            peer_name="MuJoCo env, default welds",
+            peer=mj["closure_error"] if ok and mj else None,
+        ),
+    ]
+    physics = data["physics"]
+    batched = physics["reduced_batched"]
+    rows += [
+        timed(
+            "reduced_step",
+            "envs: reduced dynamics step, one robot",
+            physics["reduced"],
+            per_item=True,
+            peer_name="constrained Simulator",
+            peer=physics["constrained"],
+        ),
+        timed(
+            "reduced_step_batched",
+            f"envs: reduced dynamics step, per robot-step (N = {batched['n']:,})",
+            batched,
+            per_item=True,
+            peer_name="constrained Simulator",
+            peer=physics["constrained"],
+        ),
+        valued(
+            "reduced_closure",
+            f"envs: reduced dynamics closure error over a {physics['duration_s']:g} s swing, max",
+            physics["reduced_closure_error"],
+            unit="rad",
+            peer_name="constrained Simulator",
+            peer=physics["constrained_closure_error"],
+        ),
+    ]
+    return rows
 
 
 def figures_optimize(data: Mapping[str, Any]) -> list[Figure]:
@@ -674,7 +751,11 @@ BENCHMARKS: dict[str, Benchmark] = {
         ),
         Benchmark(
             "envs",
-            "gymnasium.vector.SyncVectorEnv over single OrientEnv objects (N Python environments)",
+            "gymnasium.vector.SyncVectorEnv over single OrientEnv objects (N Python "
+            "environments); for the dynamic environment, the same task built the usual way on "
+            "MuJoCo (the exported MJCF, position actuators, mj_step at the same 1 ms step), "
+            "one env and SyncVectorEnv over N copies; for its physics, the constrained "
+            "Simulator",
             figures_envs,
         ),
         Benchmark(

@@ -1,4 +1,5 @@
-"""Environment benchmark: steps of ``spm_pin/Orient-v0``, batched and one at a time.
+"""Environment benchmark: steps of ``spm_pin/Orient-v0`` and ``spm_pin/OrientDynamic-v0``,
+batched and one at a time, beside the usual ways to build and batch such environments.
 
 Run from the repository root::
 
@@ -10,20 +11,36 @@ Importing this module limits numpy to one thread (see ``_common.limit_to_one_thr
 What is measured (the prototype, random starts and goals, seeded random actions,
 ``safety="clip"``):
 
-1. ``vector``: one step of :class:`~spm_pin.envs.OrientVectorEnv` with N robots
+1. ``results.vector``: one step of :class:`~spm_pin.envs.OrientVectorEnv` with N robots
    (N = 4096; 256 in a quick run), per env step.
-2. ``single``: one step of :class:`~spm_pin.envs.OrientEnv`.
+2. ``results.single``: one step of :class:`~spm_pin.envs.OrientEnv`.
 3. ``peer``: Gymnasium's ``SyncVectorEnv`` over 64 single environments (the usual way
    to batch an environment: N Python objects), per env step.
-4. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
+4. ``dynamic``: one step of :class:`~spm_pin.envs.OrientDynamicVectorEnv` (position
+   actuation, 20 physics steps of 1 ms per step) with N = 4096 robots and with the
+   MuJoCo peer's N, and of :class:`~spm_pin.envs.OrientDynamicEnv`; the loop-closure
+   error of the batch's states after the timed steps.
+5. ``mujoco_peer``: the same task built the usual way on MuJoCo
+   (:class:`benchmarks._mujoco_env.MujocoOrientEnv`: the exported MJCF, position
+   actuators, ``mj_step`` with ``nstep`` 20 at the same 1 ms step), one environment
+   and ``SyncVectorEnv`` over 64 copies; the welds' closure error after the timed steps
+   (MuJoCo's default weld stiffness).
+6. ``physics``: the dynamic environment's physics, the reduced dynamics
+   (:class:`~spm_pin.dynamics.ReducedDynamics`, one robot), beside the constrained
+   simulator (:class:`~spm_pin.dynamics.Simulator`), both semi-implicit Euler at 1 ms,
+   the robot hanging and swinging freely for 10 s (1 s chunks timed); the loop-closure
+   error after it.
+7. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
    (N = 4096, one core).
+
+MuJoCo is optional: without it, ``mujoco_peer`` says so and the rest runs.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from ._common import limit_to_one_thread
@@ -31,11 +48,22 @@ from ._common import limit_to_one_thread
 #: Whether the one-thread limit was set before numpy was imported.
 THREADS_LIMITED = limit_to_one_thread()
 
+import importlib.util  # noqa: E402
+import math  # noqa: E402
+
 import gymnasium  # noqa: E402
 import numpy as np  # noqa: E402
+import numpy.typing as npt  # noqa: E402
 
 import spm_pin as spm  # noqa: E402
-from spm_pin.envs import OrientEnv, OrientVectorEnv  # noqa: E402
+from spm_pin import dynamics as D  # noqa: E402
+from spm_pin.envs import (  # noqa: E402
+    OrientDynamicEnv,
+    OrientDynamicVectorEnv,
+    OrientEnv,
+    OrientVectorEnv,
+)
+from spm_pin.kinematics import forward_kinematics  # noqa: E402
 
 from ._common import (  # noqa: E402
     format_rate,
@@ -49,24 +77,59 @@ from ._common import (  # noqa: E402
     with_all_pass,
 )
 
+FloatArray = npt.NDArray[np.float64]
+
 #: Seed of the episodes and actions.
 SEED = 20_250_228
 #: The project's target [env steps/s], batched N = 4096.
 TARGET_STEPS_PER_SECOND = 1_000_000.0
 
 
+#: Physics step of the dynamic environment and of its peers [s].
+DT = 1e-3
+#: Where the free swing of the physics section starts [rad] (the robot hanging).
+SWING_START = np.radians([20.0, -10.0, 5.0])
+#: Goals drawn for the MuJoCo peer (from the kinematic environment's episodes).
+PEER_GOALS = 256
+
+
 @dataclasses.dataclass(frozen=True)
 class Sizes:
-    """Batch sizes and repeat counts of one run."""
+    """Batch sizes, repeat counts and durations of one run."""
 
     batch: int
     peer_batch: int
     repeats: int
     single_repeats: int
+    dynamic_batch: int
+    dynamic_repeats: int
+    dynamic_single_repeats: int
+    swing_time: float  # [s] of the physics section
+    swing_chunk: float  # [s] timed at a time
 
 
-FULL = Sizes(batch=4096, peer_batch=64, repeats=15, single_repeats=300)
-QUICK = Sizes(batch=256, peer_batch=16, repeats=3, single_repeats=30)
+FULL = Sizes(
+    batch=4096,
+    peer_batch=64,
+    repeats=15,
+    single_repeats=300,
+    dynamic_batch=4096,
+    dynamic_repeats=5,
+    dynamic_single_repeats=50,
+    swing_time=10.0,
+    swing_chunk=1.0,
+)
+QUICK = Sizes(
+    batch=256,
+    peer_batch=16,
+    repeats=3,
+    single_repeats=30,
+    dynamic_batch=64,
+    dynamic_repeats=3,
+    dynamic_single_repeats=5,
+    swing_time=0.2,
+    swing_chunk=0.05,
+)
 
 
 def _stepper(env: Any, n: int) -> Any:
@@ -78,6 +141,134 @@ def _stepper(env: Any, n: int) -> Any:
         return env.step(rng.uniform(-1.0, 1.0, size=shape).astype(np.float32))
 
     return step
+
+
+def closure_error(theta: FloatArray, R: FloatArray, design: spm.SPMDesign) -> float:
+    """Largest |w_i(theta) . R v_i0 - cos(alpha2)| [rad-like] over robots (n, 3) with
+    platform rotations R (n, 3, 3): how far the states are from closing the loops."""
+    w = forward_kinematics(theta, design).w
+    v = np.einsum("nij,kj->nki", R, design.v0)
+    return float(np.abs(np.einsum("nki,nki->nk", w, v) - math.cos(design.alpha2)).max())
+
+
+def bench_dynamic(sizes: Sizes) -> dict[str, Any]:
+    """``OrientDynamicVectorEnv`` at N = ``dynamic_batch`` and at the peer's N, and the
+    single ``OrientDynamicEnv``, per env step."""
+    out: dict[str, Any] = {}
+    closure = 0.0
+    for key, n in (("vector", sizes.dynamic_batch), ("vector_peer_n", sizes.peer_batch)):
+        env = OrientDynamicVectorEnv(n)
+        env.reset(seed=SEED)
+        timed = time_call(_stepper(env, n), repeats=sizes.dynamic_repeats)
+        out[key] = {**timed.timing.summary(items=n), "n": n}
+        closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
+    single = OrientDynamicEnv(max_steps=10**7)
+    single.reset(seed=SEED)
+    timed = time_call(_stepper(single, 0), repeats=sizes.dynamic_single_repeats)
+    out["single"] = {**timed.timing.summary(items=1), "n": 1}
+    out["closure_error"] = closure
+    out["physics_steps_per_env_step"] = single.core.substeps
+    out["actuation"] = single.physics.actuation
+    return out
+
+
+def _returning(env: gymnasium.Env[Any, Any]) -> Callable[[], gymnasium.Env[Any, Any]]:
+    """A maker of ``env`` (``SyncVectorEnv`` takes makers)."""
+    return lambda: env
+
+
+def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
+    """The task on MuJoCo built the usual way, one env and ``SyncVectorEnv`` of
+    ``peer_batch`` copies, per env step; unavailable without MuJoCo."""
+    if importlib.util.find_spec("mujoco") is None:
+        return {"available": False, "reason": "mujoco is not installed"}
+    from ._mujoco_env import MujocoOrientEnv
+
+    single = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
+    single.reset(seed=SEED)
+    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats)
+    out: dict[str, Any] = {
+        "available": True,
+        "method": "MujocoOrientEnv (benchmarks/_mujoco_env.py): urdf/spm.xml with position "
+        f"actuators, mj_step nstep={single.frame_skip} at {DT:g} s per env step; "
+        "gymnasium.vector.SyncVectorEnv over N copies",
+        "physics_steps_per_env_step": single.frame_skip,
+        "single": {**timed.timing.summary(items=1), "n": 1},
+    }
+    n = sizes.peer_batch
+    copies = [MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7) for _ in range(n)]
+    vector = gymnasium.vector.SyncVectorEnv([_returning(env) for env in copies])
+    vector.reset(seed=SEED)
+    timed = time_call(_stepper(vector, n), repeats=sizes.repeats)
+    out["vector"] = {**timed.timing.summary(items=n), "n": n}
+    out["closure_error"] = max(env.closure_residual() for env in [single, *copies])
+    return out
+
+
+def bench_physics(sizes: Sizes) -> dict[str, Any]:
+    """The reduced dynamics beside the constrained simulator: a free swing, hanging,
+    timed in chunks; the loop-closure error over it."""
+    robot = spm.build_robot()
+    hanging = D.ClosedLoopDynamics(robot, gravity=(0.0, 0.0, 9.81))
+    reduced = D.ReducedDynamics.from_dynamics(hanging)
+    chunk = max(1, round(sizes.swing_chunk / DT))
+    chunks = max(1, round(sizes.swing_time / sizes.swing_chunk))
+    state: dict[str, FloatArray] = {
+        "theta": SWING_START[None].copy(),
+        "rate": np.zeros((1, 3)),
+    }
+    state["R"] = reduced.rotation(state["theta"])
+    drift = {"reduced": 0.0, "constrained": 0.0}
+
+    def swing_reduced() -> None:
+        theta, rate, R = state["theta"], state["rate"], state["R"]
+        for _ in range(chunk):
+            step = reduced.step(theta, rate, None, DT, integrator="euler", reference=R)
+            theta, rate, R = step.theta, step.theta_dot, step.R
+        state.update(theta=theta, rate=rate, R=R)
+        error = closure_error(theta, reduced.rotation(theta, R), robot.design)
+        drift["reduced"] = max(drift["reduced"], error)
+
+    simulator = D.Simulator(hanging, dt=DT, integrator="euler", state=SWING_START)
+
+    def swing_constrained() -> None:
+        error = simulator.run(chunk * DT, record_every=chunk).max_closure_residual
+        drift["constrained"] = max(drift["constrained"], float(error))
+
+    timed = time_call(swing_reduced, repeats=chunks, warmup=0)
+    timed_c = time_call(swing_constrained, repeats=chunks, warmup=0)
+    n = sizes.dynamic_batch
+    rng = np.random.default_rng(SEED)
+    theta0 = SWING_START + rng.uniform(-0.05, 0.05, (n, 3))
+    R0 = reduced.rotation(theta0)
+    batch_steps = round(0.02 / DT)  # one control period
+
+    def swing_batch() -> None:
+        theta, rate, R = theta0, np.zeros_like(theta0), R0
+        for _ in range(batch_steps):
+            step = reduced.step(theta, rate, None, DT, integrator="euler", reference=R)
+            theta, rate, R = step.theta, step.theta_dot, step.R
+
+    timed_b = time_call(swing_batch, repeats=sizes.dynamic_repeats)
+    steps = chunk * chunks
+    batched = {**timed_b.timing.summary(items=n * batch_steps), "n": n, "steps": batch_steps}
+    ours = {**timed.timing.summary(items=chunk), "n": 1, "steps": steps}
+    peer = {**timed_c.timing.summary(items=chunk), "n": 1, "steps": steps}
+    return {
+        "duration_s": steps * DT,
+        "dt_s": DT,
+        "reduced": ours,
+        "reduced_batched": batched,
+        "constrained": peer,
+        "speed_ratio_reduced_vs_constrained": peer["median_s"] / ours["median_s"],
+        "speed_ratio_reduced_batched_vs_constrained": peer["per_item_s"] / batched["per_item_s"],
+        "reduced_closure_error": drift["reduced"],
+        "constrained_closure_error": drift["constrained"],
+        "final_theta_rad": {
+            "reduced": state["theta"][0].tolist(),
+            "constrained": simulator.theta.tolist(),
+        },
+    }
 
 
 def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
@@ -104,6 +295,16 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     peer["speed_ratio_ours_vs_peer"] = (
         results["vector"]["per_second"] / peer["per_second"] if peer["per_second"] else None
     )
+    dynamic = bench_dynamic(sizes)
+    mujoco_peer = bench_mujoco_peer(sizes, vector.core.goal[:PEER_GOALS].copy())
+    if mujoco_peer["available"]:
+        mujoco_peer["speed_ratio_ours_vs_peer"] = {
+            "vector": dynamic["vector"]["per_second"] / mujoco_peer["vector"]["per_second"],
+            "vector_same_n": dynamic["vector_peer_n"]["per_second"]
+            / mujoco_peer["vector"]["per_second"],
+            "single": mujoco_peer["single"]["median_s"] / dynamic["single"]["median_s"],
+        }
+    physics = bench_physics(sizes)
     rate = results["vector"]["per_second"] if sizes.batch == 4096 else float("nan")
     targets: dict[str, Any] = {}
     if not quick:
@@ -113,18 +314,24 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     with_all_pass(targets)
     return {
         "benchmark": "envs",
-        "machine": machine_info(("numpy", "gymnasium"), {"spm_pin": spm.__version__}),
+        "machine": machine_info(
+            ("numpy", "gymnasium", "mujoco", "pin"), {"spm_pin": spm.__version__}
+        ),
         "config": {
             "quick": quick,
             "seed": SEED,
             "sizes": dataclasses.asdict(sizes),
             "threads_limited_before_numpy": THREADS_LIMITED,
             "control_period_s": vector.settings.control_period,
+            "physics_dt_s": DT,
             "safety": vector.settings.safety,
             "timing": "perf_counter; 1 warm-up call; median/p95/p99 over repeated calls",
         },
         "results": results,
         "peer": peer,
+        "dynamic": dynamic,
+        "mujoco_peer": mujoco_peer,
+        "physics": physics,
         "targets": targets,
     }
 
@@ -150,6 +357,26 @@ def report(payload: dict[str, Any]) -> str:
                 format_rate(entry["per_second"]),
             ]
         )
+    dynamic, mj = payload["dynamic"], payload["mujoco_peer"]
+    cases = [
+        (f"OrientDynamicVectorEnv, N = {dynamic['vector']['n']}", dynamic["vector"]),
+        (f"OrientDynamicVectorEnv, N = {dynamic['vector_peer_n']['n']}", dynamic["vector_peer_n"]),
+        ("OrientDynamicEnv, one step", dynamic["single"]),
+    ]
+    if mj["available"]:
+        cases += [
+            (f"peer: MuJoCo env, SyncVectorEnv, N = {mj['vector']['n']}", mj["vector"]),
+            ("peer: MuJoCo env, one step", mj["single"]),
+        ]
+    for label, entry in cases:
+        rows.append(
+            [
+                label,
+                format_seconds(entry["median_s"]),
+                format_seconds(entry["p95_s"]),
+                format_rate(entry["per_second"]),
+            ]
+        )
     table = format_table(["case", "median per call", "p95", "env steps/s"], rows)
     lines = ["Targets"]
     record = payload["targets"].get("vector_steps_per_second")
@@ -161,15 +388,37 @@ def report(payload: dict[str, Any]) -> str:
             f"{format_rate(record['value'])} (>= {record['threshold']:,.0f})"
         )
     ratio = peer["speed_ratio_ours_vs_peer"]
-    notes = f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s"
-    return "\n\n".join([head, table, notes, "\n".join(lines)])
+    notes = [f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s"]
+    if mj["available"]:
+        r = mj["speed_ratio_ours_vs_peer"]
+        notes.append(
+            f"dynamic vs MuJoCo peer: batched {r['vector']:.2f}x (same N: "
+            f"{r['vector_same_n']:.2f}x) the env steps/s, single step {r['single']:.3f}x "
+            f"as fast; closure error after the timed steps: ours "
+            f"{dynamic['closure_error']:.1e}, MuJoCo welds {mj['closure_error']:.1e} rad"
+        )
+    else:
+        notes.append(f"MuJoCo peer not run: {mj['reason']}")
+    ph = payload["physics"]
+    notes.append(
+        f"physics, {ph['duration_s']:g} s free swing: reduced dynamics "
+        f"{format_seconds(ph['reduced']['per_item_s'])} per step, constrained simulator "
+        f"{format_seconds(ph['constrained']['per_item_s'])} "
+        f"({ph['speed_ratio_reduced_vs_constrained']:.2f}x; batched, N = "
+        f"{ph['reduced_batched']['n']}: {format_seconds(ph['reduced_batched']['per_item_s'])} "
+        f"per robot-step, {ph['speed_ratio_reduced_batched_vs_constrained']:.2f}x); "
+        f"closure error: reduced "
+        f"{ph['reduced_closure_error']:.1e}, constrained {ph['constrained_closure_error']:.1e}"
+    )
+    return "\n\n".join([head, table, "\n".join(notes), "\n".join(lines)])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the summary, write the JSON; returns the exit code."""
     parser = standard_parser(
         "envs",
-        "Env steps per second of spm-pin's Gymnasium environment, batched and single.",
+        "Env steps per second of spm-pin's Gymnasium environments, batched and single, "
+        "beside SyncVectorEnv and a MuJoCo environment.",
         quick_help="small batches, few repeats (smoke test)",
     )
     return run_main(

@@ -30,7 +30,10 @@ measured:
    Delay Time 0), to add to the loop time on real hardware.
 5. ``control_cycle``: one streaming cycle of a new orientation target (inverse
    kinematics, the guard's static checks, Goal Positions) on the single-input fast
-   path, with its stages, beside the batch path (the same calls on (1, 3) arrays).
+   path with its kernels compiled by numba (extra ``fast``), with its stages, beside
+   the batch path (the same calls on (1, 3) arrays); ``control_cycle_python``: the
+   same cycle with the Python kernels (``SPM_PIN_JIT=0``, in a child process), what a
+   user without the extra gets.
 6. ``targets``: the software part of a cycle (kinematics + guard, no model update) at
    >= 500 Hz; the streaming cycle's median <= 100 us.
 """
@@ -50,6 +53,7 @@ THREADS_LIMITED = limit_to_one_thread()
 import numpy as np  # noqa: E402
 
 import spm_pin as spm  # noqa: E402
+from spm_pin import _jit  # noqa: E402
 from spm_pin.hardware import (  # noqa: E402
     EmulatedBus,
     HardwareConfig,
@@ -259,12 +263,40 @@ def bench_control_cycle(robot: spm.SPMRobot, n: int) -> dict[str, Any]:
     batch_timing, batch_pulses = time_each(batch, targets, warmup=0)
     share = {name: float(np.median(values)) for name, values in stages.items()}
     return {
+        "compiled": _jit.available(),
         "fast": fast_timing.summary(),
         "batch": batch_timing.summary(),
         "stages_median_s": share,
         "n": n,
         "same_goals": fast_pulses == batch_pulses,
     }
+
+
+def _python_cycle(n: int) -> dict[str, Any]:
+    if _jit.available():  # pragma: no cover - the parent switched it off
+        raise RuntimeError(f"{_jit.ENV_VARIABLE}=0 did not reach the child process")
+    return bench_control_cycle(spm.build_robot(), n)
+
+
+def bench_control_cycle_python(n: int) -> dict[str, Any]:
+    """:func:`bench_control_cycle` with the Python kernels: in a child process started
+    with ``SPM_PIN_JIT=0`` (nothing compiled there)."""
+    import concurrent.futures
+    import multiprocessing
+    import os
+
+    previous = os.environ.get(_jit.ENV_VARIABLE)
+    os.environ[_jit.ENV_VARIABLE] = "0"
+    try:
+        context = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
+            result: dict[str, Any] = pool.submit(_python_cycle, n).result(timeout=900)
+    finally:
+        if previous is None:
+            del os.environ[_jit.ENV_VARIABLE]
+        else:
+            os.environ[_jit.ENV_VARIABLE] = previous
+    return result
 
 
 def wire_estimate() -> dict[str, Any]:
@@ -311,13 +343,14 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
         )
     results["guard_cold"] = bench_guard(robot, int(sizes["guard"]))
     results["control_cycle"] = bench_control_cycle(robot, int(sizes["guard"]))
+    results["control_cycle_python"] = bench_control_cycle_python(int(sizes["guard"]))
     results["wire"] = wire_estimate()
     software = results["loop"]["software"]["per_second"]
     cycle = results["control_cycle"]["fast"]["median_s"]
     return {
         "benchmark": "hardware",
         "machine": machine_info(
-            ("numpy", "pin", "coal", "dynamixel-sdk"), {"spm_pin": spm.__version__}
+            ("numpy", "pin", "coal", "dynamixel-sdk", "numba"), {"spm_pin": spm.__version__}
         ),
         "config": {
             "quick": quick,
@@ -397,17 +430,19 @@ def report(payload: dict[str, Any]) -> str:
         ]
     )
     cycle = results["control_cycle"]
-    for key, label in (
-        ("fast", "control cycle, fast path"),
-        ("batch", "control cycle, batch path"),
+    python = results["control_cycle_python"]
+    for part, key, label in (
+        (cycle, "fast", "control cycle, fast path" + (", compiled" if cycle["compiled"] else "")),
+        (python, "fast", "control cycle, fast path, Python kernels"),
+        (cycle, "batch", "control cycle, batch path"),
     ):
         rows.append(
             [
                 label,
-                format_count(cycle["n"]),
-                format_seconds(cycle[key]["median_s"]),
-                format_seconds(cycle[key]["p95_s"]),
-                format_rate(cycle[key]["per_second"]),
+                format_count(part["n"]),
+                format_seconds(part[key]["median_s"]),
+                format_seconds(part[key]["p95_s"]),
+                format_rate(part[key]["per_second"]),
             ]
         )
     table = format_table(["case", "n", "median", "p95", "rate"], rows)

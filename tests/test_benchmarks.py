@@ -332,7 +332,15 @@ def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert data["benchmark"] == "hardware" and data["config"]["quick"] is True
     assert {"dynamixel-sdk", "pin"} <= set(data["machine"]["packages"])
     results = data["results"]
-    assert set(results) == {"bus", "loop", "loop_with_model", "guard_cold", "control_cycle", "wire"}
+    assert set(results) == {
+        "bus",
+        "loop",
+        "loop_with_model",
+        "guard_cold",
+        "control_cycle",
+        "control_cycle_python",
+        "wire",
+    }
     for name in ("sync_read_fast", "sync_read_plain", "sync_write"):
         assert results["bus"][name]["p95_s"] >= results["bus"][name]["median_s"] > 0, name
     for name in ("loop", "loop_with_model"):
@@ -346,6 +354,10 @@ def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert cycle["same_goals"] is True
     assert cycle["fast"]["median_s"] < cycle["batch"]["median_s"]
     assert set(cycle["stages_median_s"]) == {"ik", "guard", "pulses"}
+    # The same cycle with the Python kernels, in a child process without numba.
+    python = results["control_cycle_python"]
+    assert python["compiled"] is False and python["same_goals"] is True
+    assert cycle["compiled"] is (importlib.util.find_spec("numba") is not None)
     assert set(data["targets"]) == {"software_per_second", "control_cycle_median", "all_pass"}
 
 

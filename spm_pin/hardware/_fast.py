@@ -14,6 +14,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+import numpy as np
+import numpy.typing as npt
+
 from .. import _jit
 from ..kinematics import _scalar
 from ..kinematics.jacobian import SINGULAR_TOL
@@ -27,6 +30,9 @@ if TYPE_CHECKING:
 __all__ = ["FastStatic"]
 
 Rows = Sequence[Sequence[float]]
+#: Largest change of an entry of R from the reference for which the single-input
+#: solve stands for the continuous one (:meth:`FastStatic.rotation_near`).
+CONTINUITY = 0.25
 
 
 class FastStatic:
@@ -84,6 +90,21 @@ class FastStatic:
             return False, float("nan"), float("nan"), None
         margin, dexterity = _scalar.measures(theta, rotation, k, SINGULAR_TOL, self._jacobian_parts)
         return True, margin, dexterity, rotation
+
+    def rotation_near(
+        self, theta: Sequence[float], reference: npt.NDArray[np.float64] | None
+    ) -> npt.NDArray[np.float64] | None:
+        """The home-mode R of one finite input by the compiled kernels, where it
+        continues ``reference`` (within :data:`CONTINUITY`) or there is none; else
+        None, and ``forward_kinematics(theta, reference=...)`` decides (unreachable
+        inputs, the rare inputs where the home rule admits a second mode)."""
+        rows = _scalar.fk_home(theta, self.constants, self._fk_kernels)
+        if rows is None:
+            return None
+        rotation = np.array(rows)
+        if reference is not None and not np.max(np.abs(rotation - reference)) <= CONTINUITY:
+            return None
+        return rotation
 
     def collisions(
         self, theta: Sequence[float], rotation: Rows | None

@@ -332,10 +332,19 @@ class ServoSync:
             else:
                 reachable = True
                 R = np.array(self.robot.placement(q, "platform").rotation, dtype=float)
-        else:
-            fk = forward_kinematics(theta, self.design, reference=self._R)
-            reachable = bool(fk.reachable)
-            R = np.asarray(fk.R, dtype=float)
+        else:  # the compiled single-input solve where it continues the last R
+            fast = self.guard._fast
+            near = None
+            if fast is not None and fast.robot.design == self.design:
+                values = theta.tolist()
+                if math.isfinite(sum(values)):
+                    near = fast.rotation_near(values, self._R)
+            if near is not None:
+                reachable, R = True, near
+            else:
+                fk = forward_kinematics(theta, self.design, reference=self._R)
+                reachable = bool(fk.reachable)
+                R = np.asarray(fk.R, dtype=float)
         if reachable:
             self._R = R
         t1 = self.clock()
