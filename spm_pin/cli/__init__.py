@@ -28,7 +28,8 @@ Commands::
                 [--min-dexterity X] [--no-clearance] [--workers N] [--out DIR]
                 [--no-plots] [--quiet] [--json] [--design NAME|FILE]
     spm optimize --objectives NAME ... (--vary NAME=LOW:HIGH ... | --space FILE)
-                 [--trials N] [--seed S] [--storage FILE] [--json] [--design NAME|FILE]
+                 [--trials N] [--seed S] [--storage FILE] [--workers N | --scheduler ADDRESS]
+                 [--out DIR [--best N]] [--json] [--design NAME|FILE]
     spm serve [--host 127.0.0.1] [--port 8750] [--sim kinematic] [--design NAME|FILE]
               [--token-file FILE]
 

@@ -1,11 +1,14 @@
 """``spm optimize``: a design study on Optuna (:mod:`spm_pin.optimize.study`, imported
 when the command runs), resumable from its storage file, its designs evaluated in this
 process, on a local Dask cluster (``--workers N``) or on a running one
-(``--scheduler ADDRESS``)."""
+(``--scheduler ADDRESS``); with ``--out DIR`` the results are written there
+(:func:`spm_pin.optimize.write_results`: the Pareto plot, the best designs as design
+files, a page showing them and a JSON report)."""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -58,6 +61,16 @@ def _space_file(path: str) -> list[tuple[str, float, float]]:
     return out
 
 
+def _check_out(out: str) -> None:
+    """Refuse an --out folder that cannot be made, before the study runs (the results
+    are written after it)."""
+    path = Path(out)
+    existing = next((p for p in (path, *path.parents) if p.exists()), Path("."))
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        what = "is not a folder" if not existing.is_dir() else "is not writable"
+        raise UsageError(f"--out {out}: {existing} {what}")
+
+
 def _run_optimize(args: argparse.Namespace) -> int:
     from ..optimize import DesignSpace, Variable
     from ..optimize.study import StudySettings, run_study
@@ -87,6 +100,10 @@ def _run_optimize(args: argparse.Namespace) -> int:
         import optuna  # noqa: F401  (the optimize extra)
     except ImportError:
         raise UsageError("spm optimize needs Optuna: pip install 'spm-pin[optimize]'") from None
+    if args.best < 1:
+        raise UsageError(f"--best takes an integer >= 1, got {args.best}")
+    if args.out is not None:
+        _check_out(args.out)
     if args.workers > 1 or args.scheduler is not None:
         try:
             import distributed  # noqa: F401
@@ -117,6 +134,13 @@ def _run_optimize(args: argparse.Namespace) -> int:
         "seconds": result.seconds,
         **result.summary(),
     }
+    if args.out is not None:
+        from ..optimize.results import write_results
+
+        written = write_results(result, args.out, best=args.best)
+        record["out"] = str(args.out)
+        record["files"] = [str(path) for path in written.files]
+        record["notes"] = written.report["notes"]
     if args.json:
         _emit(record, True)
     else:
@@ -138,6 +162,12 @@ def _print_text(record: dict[str, Any]) -> None:
         values = " ".join(f"{k}={v:.4g}" for k, v in trial["values"].items())
         scores = " ".join(f"{n}={trial['scores'][n]:.4g}" for n in names)
         print(f"  #{trial['number']}: {values} -> {scores}")
+    if "files" in record:
+        print(f"wrote {len(record['files'])} files to {record['out']}:")
+        for path in record["files"]:
+            print(f"  {path}")
+        for note in record["notes"]:
+            print(f"  note: {note}")
 
 
 def add_parser(commands: Any) -> None:
@@ -147,7 +177,9 @@ def add_parser(commands: Any) -> None:
         help="search a design space for the best designs (Optuna; resumable)",
         description="A design study: vary link angles [deg] or sizes [m] of a coaxial "
         "design within bounds, score each candidate by the objectives (NSGA-II for "
-        "several, TPE for one), under constraints, and print the Pareto front. With "
+        "several, TPE for one), under constraints, and print the Pareto front. With --out "
+        "DIR, write there pareto.png, the best designs as design files best_1.toml ... "
+        "(for --design FILE), designs.html and report.json. With "
         "--storage FILE the study is kept in an Optuna journal file (or an RDB URL such "
         "as sqlite:///study.db): running again continues it up to --trials in all. "
         "--workers N or --scheduler ADDRESS evaluate the designs on Dask (this process "
@@ -231,6 +263,18 @@ def add_parser(commands: Any) -> None:
     )
     parser.add_argument(
         "--include-base", action="store_true", help="evaluate the base design first"
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write the results there: pareto.png, best_1.toml ..., designs.html, report.json",
+    )
+    parser.add_argument(
+        "--best",
+        type=int,
+        default=5,
+        metavar="N",
+        help="with --out: write at most N designs of the Pareto front (default 5)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_json_option(parser)

@@ -9,7 +9,9 @@ the safe orientation workspace that ``spm workspace`` reports (see
 conditioning index, the worst dexterity over a required cone of tilts).
 :mod:`spm_pin.optimize.torque` gives the peak motor torque along a required motion
 with a payload, and :mod:`spm_pin.optimize.study` runs resumable studies on Optuna
-(the ``optimize`` extra), as ``spm optimize`` does.
+(the ``optimize`` extra), as ``spm optimize`` does; :mod:`spm_pin.optimize.results`
+writes what a study found (the Pareto front's plot, the best designs as design files, a
+page showing them and a JSON report), as ``spm optimize --out DIR`` does.
 """
 
 from ._engines import ClusterError
@@ -23,6 +25,7 @@ from .objectives import (
     global_conditioning_index,
     home_clearance,
 )
+from .results import ResultFiles, best_trials, load_study_result, pareto_figure, write_results
 from .scoring import WorkspaceScore, safe_workspace_score
 from .study import OBJECTIVES, StudyResult, StudySettings, TrialRecord, evaluate, run_study
 from .torque import Motion, Payload, PeakTorque, cone_motion, motion_inputs, peak_torque
@@ -36,19 +39,24 @@ __all__ = [
     "Motion",
     "Payload",
     "PeakTorque",
+    "ResultFiles",
     "StudyResult",
     "StudySettings",
     "TrialRecord",
     "Variable",
     "WorkspaceScore",
+    "best_trials",
     "cone_dexterity",
     "cone_motion",
     "envelope",
     "evaluate",
     "global_conditioning_index",
     "home_clearance",
+    "load_study_result",
     "motion_inputs",
+    "pareto_figure",
     "peak_torque",
     "run_study",
     "safe_workspace_score",
+    "write_results",
 ]
