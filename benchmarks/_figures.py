@@ -419,6 +419,14 @@ def figures_hardware(data: Mapping[str, Any]) -> list[Figure]:
             targets=("control_cycle_median",),
         ),
         timed(
+            "stream_software",
+            "hardware: orientation stream, software part of a cycle (solve, limit, "
+            "certified step, kinematics, guard)",
+            results["stream"]["software"],
+            peer_name="sync loop's software part, model updated",
+            peer=results["loop_with_model"]["software"],
+        ),
+        timed(
             "control_cycle_python",
             "hardware: the same cycle, Python kernels (without the fast extra)",
             results["control_cycle_python"]["fast"],

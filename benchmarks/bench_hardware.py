@@ -34,7 +34,11 @@ measured:
    the batch path (the same calls on (1, 3) arrays); ``control_cycle_python``: the
    same cycle with the Python kernels (``SPM_PIN_JIT=0``, in a child process), what a
    user without the extra gets.
-6. ``targets``: the software part of a cycle (kinematics + guard, no model update) at
+6. ``stream``: :class:`~spm_pin.hardware.orientation.OrientationStream` tracking the
+   platform rotations of the loop's path, one target a cycle: the software part of a
+   cycle (thread CPU time without the bus stages), and the stream's own part of it
+   (solve, rate limit, the step certified in the safe set).
+7. ``targets``: the software part of a cycle (kinematics + guard, no model update) at
    >= 500 Hz; the streaming cycle's median <= 100 us.
 """
 
@@ -214,6 +218,55 @@ def bench_loop(
         sync.release()
 
 
+def bench_stream(
+    bus: ServoBus, emulated: EmulatedBus, guard: SafetyGuard, cycles: int, reach: float
+) -> dict[str, Any]:
+    """:class:`OrientationStream` tracking the platform rotations of the loop's path
+    (home -> demo -> home), one target per cycle: the software part of each cycle
+    (solve, rate limit, the step certified in the safe set, the sync loop's
+    kinematics with the model's closed configuration, as ``spm servo stream`` runs
+    it, and guard), in CPU time of this thread without the bus stages."""
+    from spm_pin.hardware.orientation import OrientationStream
+
+    config = _config(emulated.port)
+    sync = ServoSync(bus, config, robot=guard.robot, guard=guard, clock=time.thread_time)
+    emulated.reset()
+    try:
+        sync.start()
+        limits = config.safety
+        path = plan_linear(
+            sync.goal,  # type: ignore[arg-type]
+            reach * np.radians(DEMO_DEG),
+            max_speed=limits.max_speed,
+            max_acceleration=limits.max_acceleration,
+            period=config.period,
+        )
+        path = np.vstack([path, path[::-1]])
+        targets = list(spm.forward_kinematics(path, sync.design).R)
+        stream = OrientationStream(sync)
+        software: list[float] = []
+        own: list[float] = []
+        actions: dict[str, int] = {}
+        for k in range(cycles + 20):
+            start = time.thread_time()
+            step = stream.step(targets[k % len(targets)])
+            spent = time.thread_time() - start
+            actions[step.action] = actions.get(step.action, 0) + 1
+            timings = step.sync.timings
+            if k >= 20 and step.sync.sent:  # after the warm-up cycles
+                bus_time = timings.get("read", 0.0) + timings.get("write", 0.0)
+                software.append(spent - bus_time)
+                own.append(spent - sum(timings.values()))
+        return {
+            "cycles": len(software),
+            "software": Timing(tuple(software)).summary(),
+            "stream_own": Timing(tuple(own)).summary(),
+            "actions": actions,
+        }
+    finally:
+        sync.release()
+
+
 def bench_guard(robot: spm.SPMRobot, n: int) -> dict[str, Any]:
     """Static checks of goals never seen before, one per call."""
     rng = np.random.default_rng(SEED)
@@ -341,6 +394,7 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
         results["loop_with_model"] = bench_loop(
             bus, emulated, guard, cycles, reach, update_model=True
         )
+        results["stream"] = bench_stream(bus, emulated, guard, cycles, reach)
     results["guard_cold"] = bench_guard(robot, int(sizes["guard"]))
     results["control_cycle"] = bench_control_cycle(robot, int(sizes["guard"]))
     results["control_cycle_python"] = bench_control_cycle_python(int(sizes["guard"]))
@@ -430,6 +484,20 @@ def report(payload: dict[str, Any]) -> str:
         ]
     )
     cycle = results["control_cycle"]
+    stream = results["stream"]
+    for key, label in (
+        ("software", "orientation stream: software"),
+        ("stream_own", "orientation stream: solve, limit, certify"),
+    ):
+        rows.append(
+            [
+                label,
+                format_count(stream["cycles"]),
+                format_seconds(stream[key]["median_s"]),
+                format_seconds(stream[key]["p95_s"]),
+                format_rate(stream[key]["per_second"]),
+            ]
+        )
     python = results["control_cycle_python"]
     for part, key, label in (
         (cycle, "fast", "control cycle, fast path" + (", compiled" if cycle["compiled"] else "")),

@@ -339,6 +339,7 @@ def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
         "guard_cold",
         "control_cycle",
         "control_cycle_python",
+        "stream",
         "wire",
     }
     for name in ("sync_read_fast", "sync_read_plain", "sync_write"):
@@ -354,6 +355,9 @@ def test_quick_hardware_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert cycle["same_goals"] is True
     assert cycle["fast"]["median_s"] < cycle["batch"]["median_s"]
     assert set(cycle["stages_median_s"]) == {"ik", "guard", "pulses"}
+    stream = results["stream"]
+    assert stream["cycles"] > 0 and stream["actions"].get("hold", 0) == 0
+    assert stream["software"]["median_s"] > stream["stream_own"]["median_s"] > 0
     # The same cycle with the Python kernels, in a child process without numba.
     python = results["control_cycle_python"]
     assert python["compiled"] is False and python["same_goals"] is True

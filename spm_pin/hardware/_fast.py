@@ -11,6 +11,7 @@ builds after its own forward kinematics), so the verdicts are the batch path's.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -92,19 +93,36 @@ class FastStatic:
         return True, margin, dexterity, rotation
 
     def rotation_near(
-        self, theta: Sequence[float], reference: npt.NDArray[np.float64] | None
+        self,
+        theta: npt.NDArray[np.float64],
+        reference: npt.NDArray[np.float64] | None,
+        design: object,
     ) -> npt.NDArray[np.float64] | None:
-        """The home-mode R of one finite input by the compiled kernels, where it
+        """The home-mode R of one input (3,) by the compiled kernels, where it
         continues ``reference`` (within :data:`CONTINUITY`) or there is none; else
-        None, and ``forward_kinematics(theta, reference=...)`` decides (unreachable
-        inputs, the rare inputs where the home rule admits a second mode)."""
-        rows = _scalar.fk_home(theta, self.constants, self._fk_kernels)
+        None, and ``forward_kinematics(theta, reference=...)`` decides (inputs not
+        finite or unreachable, the rare inputs where the home rule admits a second
+        mode, another ``design`` than the guard's)."""
+        values = theta.tolist()
+        if design != self.constants.design or not math.isfinite(sum(values)):
+            return None
+        rows = _scalar.fk_home(values, self.constants, self._fk_kernels)
         if rows is None:
             return None
         rotation = np.array(rows)
         if reference is not None and not np.max(np.abs(rotation - reference)) <= CONTINUITY:
             return None
         return rotation
+
+    def configuration(
+        self, theta: npt.NDArray[np.float64], rotation: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
+        """The closed q (9,) of one input whose home-mode rotation is known."""
+        from ..collision._configuration import rotation_configuration
+
+        return rotation_configuration(
+            theta.tolist(), rotation.tolist(), self._legs, self._closed_angles
+        )
 
     def collisions(
         self, theta: Sequence[float], rotation: Rows | None

@@ -322,29 +322,29 @@ class ServoSync:
         t0 = self.clock()
         theta = self.joints.to_theta(readings.position)
         q = None
+        # The compiled single-input solve where it continues the last R (else the
+        # solve from the last R decides).
+        fast = self.guard._fast
+        near = None if fast is None else fast.rotation_near(theta, self._R, self.design)
         if self.update_model:
-            # The closed configuration solves the home-mode FK itself; R is the
-            # platform's placement in it.
+            # The closed configuration (of that rotation, or the model's own home-mode
+            # solve); R is the platform's placement in it.
             try:
-                q = self.robot.configuration(theta, reference=self._R)
+                if fast is not None and near is not None:
+                    q = fast.configuration(theta, near)
+                else:
+                    q = self.robot.configuration(theta, reference=self._R)
             except (UnreachableError, ConvergenceError):
                 reachable, R = False, np.full((3, 3), math.nan)
             else:
                 reachable = True
                 R = np.array(self.robot.placement(q, "platform").rotation, dtype=float)
-        else:  # the compiled single-input solve where it continues the last R
-            fast = self.guard._fast
-            near = None
-            if fast is not None and fast.robot.design == self.design:
-                values = theta.tolist()
-                if math.isfinite(sum(values)):
-                    near = fast.rotation_near(values, self._R)
-            if near is not None:
-                reachable, R = True, near
-            else:
-                fk = forward_kinematics(theta, self.design, reference=self._R)
-                reachable = bool(fk.reachable)
-                R = np.asarray(fk.R, dtype=float)
+        elif near is not None:
+            reachable, R = True, near
+        else:
+            fk = forward_kinematics(theta, self.design, reference=self._R)
+            reachable = bool(fk.reachable)
+            R = np.asarray(fk.R, dtype=float)
         if reachable:
             self._R = R
         t1 = self.clock()
