@@ -33,6 +33,9 @@ ENV_VARIABLE = "SPM_PIN_JIT"
 
 _lock = threading.Lock()
 _cache: dict[tuple[Callable[..., Any], ...], dict[str, Callable[..., Any]]] = {}
+#: Compiled twins by the id of their Python function (kept alive by ``_originals``).
+_compiled: dict[int, Callable[..., Any]] = {}
+_originals: list[Callable[..., Any]] = []
 
 
 def _numba() -> Any | None:
@@ -54,8 +57,9 @@ def kernels(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., 
     """The functions compiled by numba (``njit``, cached on disk), by name.
 
     Args:
-        functions: Plain Python functions, each after the functions it calls: a
-            compiled function calls the compiled versions of those before it.
+        functions: Plain Python functions, each after the functions it calls (a
+            compiled function calls the compiled twins of the functions compiled
+            before it, in this call or an earlier one; each is compiled once).
 
     Returns:
         Name -> compiled function, or name -> the function itself where numba is
@@ -72,21 +76,36 @@ def kernels(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., 
             if numba is None:
                 out[function.__name__] = function
                 continue
-            namespace = {**function.__globals__, **out}
-            clone = types.FunctionType(
-                function.__code__,
-                namespace,
-                function.__name__,
-                function.__defaults__,
-                function.__closure__,
-            )
-            clone.__qualname__ = function.__qualname__
-            clone.__module__ = function.__module__
-            with warnings.catch_warnings():  # a read-only install cannot cache: fine
-                warnings.simplefilter("ignore", numba.NumbaWarning)
-                out[function.__name__] = numba.njit(cache=True)(clone)
+            compiled = _compiled.get(id(function))
+            if compiled is None:
+                compiled = _compile(numba, function)
+                _compiled[id(function)] = compiled
+                _originals.append(function)
+            out[function.__name__] = compiled
         _cache[key] = out
         return out
+
+
+def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
+    """A numba twin of ``function``: a clone whose globals name the compiled twins of
+    the functions compiled before it (by identity), so the original stays Python."""
+    namespace = {
+        name: _compiled.get(id(value), value) if callable(value) else value
+        for name, value in function.__globals__.items()
+    }
+    clone = types.FunctionType(
+        function.__code__,
+        namespace,
+        function.__name__,
+        function.__defaults__,
+        function.__closure__,
+    )
+    clone.__qualname__ = function.__qualname__
+    clone.__module__ = function.__module__
+    with warnings.catch_warnings():  # a read-only install cannot cache: fine
+        warnings.simplefilter("ignore", numba.NumbaWarning)
+        compiled: Callable[..., Any] = numba.njit(cache=True)(clone)
+    return compiled
 
 
 def ready(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., Any]] | None:

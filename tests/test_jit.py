@@ -243,3 +243,26 @@ def test_inverse_kinematics_of_one_rotation_bit_for_bit(name: str) -> None:
             assert np.array_equal(fast.theta, batch.theta[i]), i
     # Every leg of the Agile Eye (90 degree links) closes at any rotation.
     assert closed > 0 and (closed < len(rotations) or name == "agile_eye")
+
+
+def test_the_guards_one_call_a_cycle_equals_its_parts() -> None:
+    """``FastStatic.static`` (one compiled kernel: rotation, Jacobian parts, closed
+    angles) gives what the separate kernels give, and the closed q the collision
+    check would build."""
+    guard = SafetyGuard()
+    fast = guard._fast
+    assert fast is not None
+    legs = _configuration.leg_axes(guard.design)
+    reachable = 0
+    for theta in _inputs(600, SEED + 6):
+        values = theta.tolist()
+        ok, margin, dexterity, rotation, q = fast.static(values)
+        assert (ok, margin, dexterity, rotation) == fast.measures(values) or (
+            math.isnan(margin) and not ok
+        ), theta
+        if q is None:  # unreachable, or not settled by the float solve (batch decides)
+            continue
+        reachable += 1
+        assert np.array_equal(q, _configuration.rotation_configuration(values, rotation, legs))
+        assert fast.collisions_at(q) == fast.collisions(values, rotation)
+    assert 0 < reachable < 600 + 120

@@ -59,12 +59,34 @@ class FastStatic:
         self._closed_angles = _jit.kernels(_configuration.KERNELS)["closed_angles"]
         scalar = _jit.kernels(_scalar.KERNELS)  # inverse_kinematics uses them too
         self._jacobian_parts = scalar["jacobian_parts"]
+        from ..kinematics import fk as batch
+        from ..model.robot import CLOSURE_TOL
+        from . import _kernel
+
+        self._closure_tol = CLOSURE_TOL
+
+        self._static = _jit.kernels(_kernel.KERNELS)["static_parts"]
+        k = self.constants
+        self._static_args = (
+            k.coaxial,
+            batch._single_constants(robot.design),
+            batch._NEWTON_STEPS_FAST,
+            batch._POLISH_EXTRA,
+            batch._POLISHED,
+            batch.RESIDUAL_TOL,
+            batch._SIGN_TOL,
+            k.turn_axis,
+            k.turn_outer,
+            (k.u, k.v0, k.w_along, k.w_rest, k.w_cross),
+            legs,
+        )
         home = (0.0, 0.0, 0.0)
         rotation = _scalar.fk_home(home, self.constants, self._fk_kernels)
         if rotation is not None:
             _scalar.ik_home(rotation, self.constants, scalar["ik_parts"])
             self.measures(home)
             self.collisions(home, rotation)
+            self.static(home)
 
     @classmethod
     def of(cls, robot: object, limits: SafetyLimits) -> FastStatic | None:
@@ -91,6 +113,32 @@ class FastStatic:
             return False, float("nan"), float("nan"), None
         margin, dexterity = _scalar.measures(theta, rotation, k, SINGULAR_TOL, self._jacobian_parts)
         return True, margin, dexterity, rotation
+
+    def static(
+        self, theta: Sequence[float]
+    ) -> tuple[bool, float, float, Rows | None, npt.NDArray[np.float64] | None]:
+        """:meth:`measures` and the closed q of one finite goal [rad] in one compiled
+        call: (reachable, singularity margin, dexterity, platform rotation rows,
+        q (9,) or None where :meth:`collisions` must build it)."""
+        t0, t1, t2 = float(theta[0]), float(theta[1]), float(theta[2])
+        if self.constants.coaxial:
+            reduced, c, s = _scalar.reduce_input(t0, t1, t2)
+        else:
+            reduced, c, s = (t0, t1, t2), 1.0, 0.0
+        ok, rotation, leg_margin, unit, A, b, first, second, third, worst = self._static(
+            (t0, t1, t2), reduced, c, s, *self._static_args
+        )
+        if not ok:  # not settled by the float solve: the batch path decides
+            reachable, margin, dexterity, rows = self.measures(theta)
+            return reachable, margin, dexterity, rows, None
+        margin, dexterity = _scalar.measures_of_parts(leg_margin, unit, A, b, SINGULAR_TOL)
+        q = np.array(first + second + third) if worst <= self._closure_tol else None
+        return True, margin, dexterity, rotation, q
+
+    def collisions_at(self, q: npt.NDArray[np.float64]) -> tuple[tuple[str, str], ...]:
+        """Colliding link pairs (with the guard's margin) at a closed q (9,)."""
+        pairs = self._checker.collisions(q, margin=self._margin)
+        return tuple((str(a), str(b)) for a, b in pairs)
 
     def rotation_near(
         self,

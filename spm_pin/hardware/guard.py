@@ -242,12 +242,14 @@ class SafetyGuard:
             return self._compute(theta[None])[0]
         self.stats["computed"] += 1
         reasons = self._limit_reasons(theta)
-        reachable, margin, dexterity, rotation = self._fast.measures(theta.tolist())
+        reachable, margin, dexterity, rotation, q = self._fast.static(theta.tolist())
 
         fast = self._fast
 
         def collide() -> tuple[LinkPair, ...]:  # called only where reachable
             try:
+                if q is not None:
+                    return fast.collisions_at(q)
                 return fast.collisions(theta.tolist(), rotation)
             except SPMError as exc:  # as in _collisions
                 return (("model", f"error: {exc}"),)

@@ -196,6 +196,17 @@ def ik_home(
 
 
 # ------------------------------------------------------------------ forward
+def reduce_input(t0: float, t1: float, t2: float) -> tuple[Vec, float, float]:
+    """A coaxial input split as the batch code splits it: the reduced input (the
+    common turn removed, each input first brought within half a turn of the first)
+    and the cosine and sine of the common turn (numpy's, as ``rotation_about``)."""
+    rep1 = t0 + _wrap(t1 - t0)
+    rep2 = t0 + _wrap(t2 - t0)
+    common = _sum3(t0, rep1, rep2) / 3.0
+    reduced = (t0 - common, rep1 - common, rep2 - common)
+    return reduced, float(np.cos(common)), float(np.sin(common))
+
+
 def fk_home(
     theta: Sequence[float],
     k: ScalarConstants,
@@ -218,11 +229,7 @@ def fk_home(
         batch._SIGN_TOL,
     )
     if k.coaxial:
-        rep1 = t0 + _wrap(t1 - t0)
-        rep2 = t0 + _wrap(t2 - t0)
-        common = _sum3(t0, rep1, rep2) / 3.0
-        reduced = (t0 - common, rep1 - common, rep2 - common)
-        c, s = float(np.cos(common)), float(np.sin(common))  # numpy's, as rotation_about
+        reduced, c, s = reduce_input(t0, t1, t2)
         solve = _fk_single.home_turned if kernels is None else kernels["home_turned"]
         single = solve(reduced, *args, c, s, k.turn_axis, k.turn_outer)
     else:
@@ -306,6 +313,13 @@ def measures(
     leg_margin, unit, A, b = (parts or jacobian_parts)(
         (theta[0], theta[1], theta[2]), R, k.u, k.v0, k.w_along, k.w_rest, k.w_cross
     )
+    return measures_of_parts(leg_margin, unit, A, b, tol)
+
+
+def measures_of_parts(
+    leg_margin: float, unit: Mat, A: Mat, b: Vec, tol: float
+) -> tuple[float, float]:
+    """:func:`measures` from the output of :func:`jacobian_parts` (the LAPACK part)."""
     a_margin = _singular_values(np.array(unit))[-1]
     margin = min(leg_margin, a_margin)
     if leg_margin <= tol or a_margin <= tol:  # type I or II: dexterity 0
