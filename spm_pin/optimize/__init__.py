@@ -12,6 +12,8 @@ with a payload, and :mod:`spm_pin.optimize.study` runs resumable studies on Optu
 (the ``optimize`` extra), as ``spm optimize`` does; :mod:`spm_pin.optimize.results`
 writes what a study found (the Pareto front's plot, the best designs as design files, a
 page showing them and a JSON report), as ``spm optimize --out DIR`` does.
+:mod:`spm_pin.optimize.validation` holds problems with known answers (the dexterity
+at home in closed form, and the designs that make it isotropic).
 """
 
 from ._engines import ClusterError
@@ -29,6 +31,7 @@ from .results import ResultFiles, best_trials, load_study_result, pareto_figure,
 from .scoring import WorkspaceScore, safe_workspace_score
 from .study import OBJECTIVES, StudyResult, StudySettings, TrialRecord, evaluate, run_study
 from .torque import Motion, Payload, PeakTorque, cone_motion, motion_inputs, peak_torque
+from .validation import home_dexterity, home_dexterity_right_angle, isotropic_alpha2
 
 __all__ = [
     "OBJECTIVES",
@@ -52,6 +55,9 @@ __all__ = [
     "evaluate",
     "global_conditioning_index",
     "home_clearance",
+    "home_dexterity",
+    "home_dexterity_right_angle",
+    "isotropic_alpha2",
     "load_study_result",
     "motion_inputs",
     "pareto_figure",
