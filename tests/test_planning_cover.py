@@ -21,7 +21,7 @@ from spm_pin.errors import InputError
 from spm_pin.hardware.config import SafetyLimits
 from spm_pin.hardware.guard import SafetyGuard
 from spm_pin.planning import SafeSet, safe_set_of
-from spm_pin.planning.cover import SafeCover
+from spm_pin.planning.cover import SAMPLE_LEVEL, SafeCover
 
 NOTCH_START_DEG = [71.0, 8.0, 67.0]  # the straight line to the goal collides
 NOTCH_GOAL_DEG = [33.0, -37.0, 8.0]
@@ -198,3 +198,29 @@ def test_filling_decides_the_root_cells_as_paths_would(safe: SafeSet) -> None:
     rng = np.random.default_rng(4)
     sample = [(int(i), int(j)) for i, j in decided[rng.choice(len(decided), 200, replace=False)]]
     assert lazy._decide(0, sample) == [bool(filled._roots[i, j] == 1) for i, j in sample]
+
+
+#: A formerly slow straight line (gaps [deg]): it runs along a narrow valley of small
+#: clearance where cells of level 3 are not covered, and used to decide thousands of
+#: cells of levels 4 and 5 (8493 vertices from an empty cover).
+VALLEY_D12_DEG = (140.0, 204.0)
+VALLEY_D23_DEG = (170.0, 104.0)
+#: Vertices plus samples evaluated to certify it from an empty cover, at most.
+VALLEY_MAX_EVALUATIONS = 7500
+
+
+def test_a_line_along_a_valley_is_certified_by_samples_not_fine_cells(safe: SafeSet) -> None:
+    """Cells from SAMPLE_LEVEL on that are not covered (children not decided) have
+    their pieces certified by samples: no finer cell is decided, the work stays
+    bounded, and the same line asked again evaluates nothing new."""
+    cover = SafeCover(safe)
+    path = safe.theta_of(np.array(VALLEY_D12_DEG), np.array(VALLEY_D23_DEG), 0.0)
+    certificate = cover.certificate(path)
+    assert certificate is not None
+    assert np.all(certificate.safe)
+    assert max(level for level, _, _ in cover._cells) <= SAMPLE_LEVEL
+    assert cover.stats["dense"] > 0  # the valley's runs, by samples
+    assert cover.stats["vertices"] + cover.stats["samples"] <= VALLEY_MAX_EVALUATIONS
+    before = dict(cover.stats)
+    assert cover.covers(path)
+    assert dict(cover.stats) == before

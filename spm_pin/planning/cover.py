@@ -15,9 +15,14 @@ computed in advance: a cell's corners are checked the first time a path crosses 
 and kept, so a cover grows with the paths asked of it and answers again in
 microseconds per cell. A straight segment of the gap plane is certified when every
 cell it crosses is covered (the segment is split exactly where it crosses the grid
-lines). Where a finest cell is not covered (at the boundary of the safe set), the
-piece of the segment inside it is certified by its own samples
-(:meth:`SafeSet.certify_samples`).
+lines). Where a cell of level :data:`SAMPLE_LEVEL` or finer is not covered and its
+children are not decided yet (at the boundary of the safe set, or along a narrow
+valley of small clearance inside it), the piece of the segment inside it is
+certified by its own samples (:meth:`SafeSet.certify_samples`) instead of deciding
+ever smaller cells: such a cell's side is about one check step, so its children's
+corners cost several times the evaluations of the piece's samples (a segment that
+runs along such a valley decided thousands of cells). Consecutive such pieces are
+certified together, and each certified run is remembered.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ if TYPE_CHECKING:
     from ..collision._configuration import Legs
     from .safe_set import SafeSet
 
-__all__ = ["LEVELS", "ROOT_STEP_DEG", "SafeCover"]
+__all__ = ["LEVELS", "ROOT_STEP_DEG", "SAMPLE_LEVEL", "SafeCover"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -56,6 +61,14 @@ LEVELS = 5
 SCALAR_BATCH = 12
 #: Undecided cells decided in one batch, at most.
 BATCH = 32
+#: Level from which a cell that is not covered, with children not decided yet, has
+#: the piece of a segment inside it certified by samples rather than by its children
+#: (side 0.5/8 deg: about one check step). ``LEVELS + 1``: always the children.
+SAMPLE_LEVEL = 3
+#: Open runs of a segment certified together once they are this long [deg], at most.
+SAMPLE_RUN_DEG = 5.0
+#: Runs certified by samples remembered (then forgotten all at once).
+SAMPLE_MEMO = 4096
 #: Root-cell states.
 _UNKNOWN, _OPEN, _COVERED = -1, 0, 1
 
@@ -70,7 +83,8 @@ class SafeCover:
 
     Attributes:
         stats: Counts: ``vertices`` evaluated, ``checks`` (collision checks),
-            ``cells`` decided.
+            ``cells`` decided, ``dense`` runs certified by samples, ``samples``
+            evaluated for them.
     """
 
     def __init__(
@@ -92,6 +106,8 @@ class SafeCover:
         self.stats = collections.Counter[str]()
         self._dense_evaluations: list[Evaluation] = []
         self._pending: list[tuple[float, float]] = []
+        # Runs certified by samples: (ends rounded) -> (safe, evaluation).
+        self._runs: dict[tuple[float, ...], tuple[bool, Evaluation]] = {}
         self._legs: Legs | None = None
 
     @property
@@ -247,9 +263,10 @@ class SafeCover:
         cells: list[tuple[int, int, int]] | None,
     ) -> bool:
         """Every point of p + t d, t in [t0, t1], lies in a covered cell of ``level``
-        or finer (those cells go into ``cells``) or in finest cells that are not
-        covered, along pieces certified by their own samples; False at the first
-        piece that fails. Cells are decided in the order the segment meets them."""
+        or finer (those cells go into ``cells``) or in cells that are not covered
+        (finest, or from :data:`SAMPLE_LEVEL` on with children not decided), along
+        runs certified by their own samples; False at the first run or cell that
+        fails. Cells are decided in the order the segment meets them."""
         pieces = self._crossings(p, d, self.root / 2**level, t0, t1)
         if level == 0:
             n = self._roots.shape[0]
@@ -261,18 +278,48 @@ class SafeCover:
                 if cells is not None:
                     cells.append((level, i, j))
                 continue
-            if level < self.levels:
+            if level < self.levels and (
+                level < SAMPLE_LEVEL or self._children_known(p, d, a, b, level)
+            ):
                 if not self._walk(p, d, a, b, level + 1, cells):
                     return False
             elif self._pending and self._pending[-1][1] == a:  # continues the last piece
                 self._pending[-1] = (self._pending[-1][0], b)
             else:
                 self._pending.append((a, b))
-            if level == 0 and self._pending:  # the open run inside this root cell
-                pending, self._pending = self._pending, []
-                if not all(self._dense(p, d, u, v, cells) for u, v in pending):
-                    return False
+            if level == 0 and self._pending and not self._flush(p, d, b, cells):
+                return False
+        if level == 0 and self._pending:  # the open runs left at the segment's end
+            pending, self._pending = self._pending, []
+            return all(self._dense(p, d, u, v, cells) for u, v in pending)
         return True
+
+    def _flush(
+        self,
+        p: tuple[float, float],
+        d: tuple[float, float],
+        b: float,
+        cells: list[tuple[int, int, int]] | None,
+    ) -> bool:
+        """After the root piece ending at ``b``: certify the open runs by samples
+        when the last has ended or the runs reach :data:`SAMPLE_RUN_DEG` (a run that
+        continues into the next root cell waits for it); False if one fails."""
+        length = math.hypot(d[0], d[1]) * sum(v - u for u, v in self._pending)
+        if self._pending[-1][1] == b and length < SAMPLE_RUN_DEG:
+            return True
+        pending, self._pending = self._pending, []
+        return all(self._dense(p, d, u, v, cells) for u, v in pending)
+
+    def _children_known(
+        self, p: tuple[float, float], d: tuple[float, float], a: float, b: float, level: int
+    ) -> bool:
+        """Whether the child (``level + 1``) of the cell of piece (a, b) in which the
+        piece's middle lies is decided already."""
+        step = self.root / 2 ** (level + 1)
+        m = 0.5 * (a + b)
+        i = math.floor((p[0] + m * d[0]) / step)
+        j = math.floor((p[1] + m * d[1]) / step)
+        return (level + 1, i, j) in self._cells
 
     def _covered(self, level: int, pieces: list[tuple[float, float, int, int]], k: int) -> bool:
         """Whether the cell of piece k is covered, deciding it (and up to
@@ -305,13 +352,19 @@ class SafeCover:
         """A piece of a segment through finest cells that are not covered (at the
         boundary of the safe set): certified by its own samples
         (:meth:`SafeSet.certify_samples`); their evaluation joins the certificate."""
-        self.stats["dense"] += 1
-        ends = self.safe.theta_of(
-            np.array([p[0] + t0 * d[0], p[0] + t1 * d[0]]),
-            np.array([p[1] + t0 * d[1], p[1] + t1 * d[1]]),
-            0.0,
-        )
-        ok, _, evaluation = self.safe.certify_samples(ends)
+        d12 = (p[0] + t0 * d[0], p[0] + t1 * d[0])
+        d23 = (p[1] + t0 * d[1], p[1] + t1 * d[1])
+        key = tuple(round(x, 9) for x in (*d12, *d23))
+        known = self._runs.get(key)
+        if known is None:
+            self.stats["dense"] += 1
+            ends = self.safe.theta_of(np.array(d12), np.array(d23), 0.0)
+            ok, _, evaluation = self.safe.certify_samples(ends)
+            self.stats["samples"] += int(evaluation.safe.size)
+            if len(self._runs) >= SAMPLE_MEMO:
+                self._runs.clear()
+            known = self._runs[key] = (ok, evaluation)
+        ok, evaluation = known
         if ok and cells is not None:
             self._dense_evaluations.append(evaluation)
         return ok

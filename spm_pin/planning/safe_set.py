@@ -67,6 +67,9 @@ LIPSCHITZ_FACTOR = 1.5
 LADDER_STEPS = 8
 #: Halvings of an interval of a path that its samples do not cover, at most.
 MAX_REFINEMENTS = 12
+#: Samples evaluated one by one on the float path (more: one numpy batch; a batch
+#: costs about a millisecond whatever its size, one sample a tenth of that).
+SCALAR_SAMPLES = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -330,6 +333,8 @@ def kinematic_checks(
     """At input angles (n, 3) [rad]: whether the home assembly mode exists, the
     singularity margin and the dexterity there (NaN where it does not), and the
     robot's configurations (n, nq) (zeros where it does not)."""
+    if theta.shape[0] <= SCALAR_SAMPLES:
+        return _scalar_checks(robot, theta)
     fk = forward_kinematics(theta, robot.design)
     reachable = np.asarray(fk.reachable, dtype=bool)
     R = np.where(reachable[:, None, None], fk.R, np.eye(3))
@@ -339,6 +344,35 @@ def kinematic_checks(
     q = np.zeros((theta.shape[0], robot.model.nq))
     if np.any(reachable):
         q[reachable] = robot._configuration_from_rotation(theta[reachable], R[reachable])
+    return reachable, sing, dex, q
+
+
+def _scalar_checks(
+    robot: SPMRobot, theta: FloatArray
+) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`kinematic_checks` of a few samples, one by one on the single-input
+    float path (the batch values to rounding, 1e-13: see
+    :meth:`~spm_pin.planning.cover.SafeCover._one_vertex`)."""
+    from ..collision._configuration import leg_axes, rotation_configuration
+    from ..kinematics import _scalar
+    from ..kinematics.jacobian import SINGULAR_TOL
+
+    n = theta.shape[0]
+    reachable = np.zeros(n, dtype=bool)
+    sing = np.full(n, np.nan)
+    dex = np.full(n, np.nan)
+    q = np.zeros((n, robot.model.nq))
+    if n == 0:
+        return reachable, sing, dex, q
+    k = _scalar.constants(robot.design)
+    legs = leg_axes(robot.design)
+    for m, row in enumerate(theta.tolist()):
+        rows = _scalar.fk_home(row, k)
+        if rows is None:
+            continue
+        reachable[m] = True
+        sing[m], dex[m] = _scalar.measures(row, rows, k, SINGULAR_TOL)
+        q[m] = rotation_configuration(row, rows, legs)
     return reachable, sing, dex, q
 
 
