@@ -152,7 +152,8 @@ class FastStatic:
         finite or unreachable, the rare inputs where the home rule admits a second
         mode, another ``design`` than the guard's)."""
         values = theta.tolist()
-        if design != self.constants.design or not math.isfinite(sum(values)):
+        same = design is self.constants.design or design == self.constants.design
+        if not same or not math.isfinite(sum(values)):
             return None
         rows = _scalar.fk_home(values, self.constants, self._fk_kernels)
         if rows is None:

@@ -70,11 +70,10 @@ from .study import (
     StudyResult,
     StudySettings,
     TrialRecord,
-    _pareto,
     _quiet_optuna,
-    _records,
     _storage,
     evaluate,
+    study_result,
 )
 
 __all__ = [
@@ -200,16 +199,7 @@ def load_study_result(storage: str | os.PathLike[str]) -> StudyResult:
     names = tuple(str(n) for n in spec["objectives"])
     if any(n not in OBJECTIVES for n in names):
         raise InputError(f"storage {text!r}: unknown objectives {list(names)}", argument="storage")
-    records = _records(study, names)
-    chosen = tuple(OBJECTIVES[n] for n in names)
-    return StudyResult(
-        study=study,
-        objectives=chosen,
-        trials=records,
-        pareto=_pareto(records, chosen),
-        new_trials=0,
-        seconds=0.0,
-    )
+    return study_result(study, names, new_trials=0, seconds=0.0)
 
 
 def _signs(objectives: Sequence[Objective]) -> np.ndarray:

@@ -779,6 +779,14 @@ def run_study(
             raise
         finally:
             bar.close()
+    return study_result(study, names, new_trials=remaining, seconds=time.perf_counter() - start)
+
+
+def study_result(
+    study: Any, names: tuple[str, ...], *, new_trials: int, seconds: float
+) -> StudyResult:
+    """The :class:`StudyResult` of an Optuna study scored by the objectives ``names``:
+    its trials read back and their Pareto front."""
     records = _records(study, names)
     chosen = tuple(OBJECTIVES[n] for n in names)
     return StudyResult(
@@ -786,6 +794,6 @@ def run_study(
         objectives=chosen,
         trials=records,
         pareto=_pareto(records, chosen),
-        new_trials=remaining,
-        seconds=time.perf_counter() - start,
+        new_trials=new_trials,
+        seconds=seconds,
     )

@@ -1,18 +1,24 @@
 """What a check of input angles found: :class:`Evaluation` (shared by the safe set's
-samples and the certified cells of :mod:`spm_pin.planning.cover`)."""
+samples and the certified cells of :mod:`spm_pin.planning.cover`), and
+:func:`sample_checks`, the kinematic checks of one input that both make."""
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 if TYPE_CHECKING:
+    from ..collision._configuration import Legs
+    from ..design import SPMDesign
+    from ..model.robot import SPMRobot
     from .safe_set import PlanSettings
 
-__all__ = ["YAW_TOLERANCE_M", "Evaluation"]
+__all__ = ["YAW_TOLERANCE_M", "Evaluation", "sample_checks"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -57,3 +63,26 @@ class Evaluation:
         if self.colliding[k]:
             return f"links nearer than the margin {settings.margin * 1e3:g} mm (collision)"
         return "too near the boundary of the safe set to certify"
+
+
+def sample_checks(robot: SPMRobot, theta: list[float]) -> tuple[bool, float, float, FloatArray]:
+    """(reachable, singularity margin, dexterity, closed q) of one finite input on
+    the single-input float path (the batch values to rounding, 1e-13); NaN measures
+    and zeros where it does not assemble in the home mode."""
+    from ..collision._configuration import rotation_configuration
+    from ..kinematics import _scalar
+    from ..kinematics.jacobian import SINGULAR_TOL
+
+    k = _scalar.constants(robot.design)
+    rows = _scalar.fk_home(theta, k)
+    if rows is None:
+        return False, math.nan, math.nan, np.zeros(robot.model.nq)
+    sing, dex = _scalar.measures(theta, rows, k, SINGULAR_TOL)
+    return True, sing, dex, rotation_configuration(theta, rows, _legs(robot.design))
+
+
+@functools.lru_cache(maxsize=32)
+def _legs(design: SPMDesign) -> Legs:
+    from ..collision._configuration import leg_axes
+
+    return leg_axes(design)

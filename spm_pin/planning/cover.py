@@ -41,10 +41,9 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..kinematics import forward_kinematics, jacobian
-from ._evaluation import YAW_TOLERANCE_M, Evaluation
+from ._evaluation import YAW_TOLERANCE_M, Evaluation, sample_checks
 
 if TYPE_CHECKING:
-    from ..collision._configuration import Legs
     from .safe_set import SafeSet
 
 __all__ = ["LEVELS", "ROOT_STEP_DEG", "SAMPLE_LEVEL", "SafeCover"]
@@ -108,7 +107,6 @@ class SafeCover:
         self._pending: list[tuple[float, float]] = []
         # Runs certified by samples: (ends rounded) -> (safe, evaluation).
         self._runs: dict[tuple[float, ...], tuple[bool, Evaluation]] = {}
-        self._legs: Legs | None = None
 
     @property
     def known_cells(self) -> int:
@@ -150,27 +148,13 @@ class SafeCover:
             )
 
     def _one_vertex(self, key: tuple[int, int]) -> tuple[bool, float, float, FloatArray]:
-        """One vertex on the single-input float path (forward kinematics, Jacobian
-        measures, closed configuration: the batch values to rounding, 1e-13)."""
-        from ..collision._configuration import leg_axes, rotation_configuration
-        from ..kinematics import _scalar
-        from ..kinematics.jacobian import SINGULAR_TOL
-
+        """One vertex on the single-input float path (:func:`._evaluation.
+        sample_checks`: the batch values to rounding, 1e-13)."""
         safe = self.safe
         d12, d23 = key[0] * self._fine, key[1] * self._fine
-        nq = safe.robot.model.nq
         if not (d12 > 0.0 and d23 > 0.0 and d12 + d23 < 360.0):
-            return False, math.nan, math.nan, np.zeros(nq)
-        theta = safe.theta_of(d12, d23, 0.0).tolist()
-        k = _scalar.constants(safe.design)
-        rows = _scalar.fk_home(theta, k)
-        if rows is None:
-            return False, math.nan, math.nan, np.zeros(nq)
-        sing, dex = _scalar.measures(theta, rows, k, SINGULAR_TOL)
-        if self._legs is None:
-            self._legs = leg_axes(safe.design)
-        q = np.asarray(rotation_configuration(theta, rows, self._legs), dtype=float)
-        return True, sing, dex, q
+            return False, math.nan, math.nan, np.zeros(safe.robot.model.nq)
+        return sample_checks(safe.robot, safe.theta_of(d12, d23, 0.0).tolist())
 
     def _vertex_passes(self, key: tuple[int, int], level: int) -> bool:
         """The vertex is certified safe within the radius of a cell of ``level``."""

@@ -44,7 +44,7 @@ from ..design import SPMDesign
 from ..errors import InputError
 from ..kinematics import forward_kinematics, jacobian
 from ..model.robot import SPMRobot
-from ._evaluation import YAW_TOLERANCE_M, Evaluation
+from ._evaluation import YAW_TOLERANCE_M, Evaluation, sample_checks
 from .cover import SafeCover
 
 __all__ = [
@@ -350,29 +350,15 @@ def kinematic_checks(
 def _scalar_checks(
     robot: SPMRobot, theta: FloatArray
 ) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
-    """:func:`kinematic_checks` of a few samples, one by one on the single-input
-    float path (the batch values to rounding, 1e-13: see
-    :meth:`~spm_pin.planning.cover.SafeCover._one_vertex`)."""
-    from ..collision._configuration import leg_axes, rotation_configuration
-    from ..kinematics import _scalar
-    from ..kinematics.jacobian import SINGULAR_TOL
-
+    """:func:`kinematic_checks` of a few samples, one by one
+    (:func:`~spm_pin.planning._evaluation.sample_checks`)."""
     n = theta.shape[0]
     reachable = np.zeros(n, dtype=bool)
     sing = np.full(n, np.nan)
     dex = np.full(n, np.nan)
     q = np.zeros((n, robot.model.nq))
-    if n == 0:
-        return reachable, sing, dex, q
-    k = _scalar.constants(robot.design)
-    legs = leg_axes(robot.design)
     for m, row in enumerate(theta.tolist()):
-        rows = _scalar.fk_home(row, k)
-        if rows is None:
-            continue
-        reachable[m] = True
-        sing[m], dex[m] = _scalar.measures(row, rows, k, SINGULAR_TOL)
-        q[m] = rotation_configuration(row, rows, legs)
+        reachable[m], sing[m], dex[m], q[m] = sample_checks(robot, row)
     return reachable, sing, dex, q
 
 
