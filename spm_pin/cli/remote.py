@@ -88,6 +88,17 @@ def _twin(args: argparse.Namespace, design: Any, stack: contextlib.ExitStack) ->
     return stack.enter_context(ServoBackend(bus, config, robot=build_robot(design)))
 
 
+class _Terminated(BaseException):
+    """SIGTERM, raised in the main thread to unwind ``spm serve``.
+
+    Not KeyboardInterrupt: CPython remembers a KeyboardInterrupt that passes through a
+    nested C-level evaluation (an extension module running Python code while it
+    imports, say) and then ends the process by SIGINT at exit, exit status -2, even
+    when the exception was caught and everything closed cleanly. A BaseException of
+    its own passes every ``except Exception`` on the way and leaves no such mark.
+    """
+
+
 def _serve_twin(
     args: argparse.Namespace, design: Any, token: str | None, stack: Any, serve: Any
 ) -> None:
@@ -115,7 +126,7 @@ def _serve_twin(
         viewer_url = viewer.start()
         stack.callback(viewer.stop)
         print(f"spm serve: the viewer follows the twin at {viewer_url}", file=sys.stderr)
-    with contextlib.suppress(KeyboardInterrupt):
+    with contextlib.suppress(KeyboardInterrupt, _Terminated):
         serve(
             backend,
             host=args.host,
@@ -135,15 +146,18 @@ def _run_serve(args: argparse.Namespace) -> int:
     check_binding(args.host, args.port, token)
     design = _design(args)
 
-    def interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+    def terminate(signum: int, frame: Any) -> None:
+        raise _Terminated
 
-    # SIGTERM is Ctrl-C from the start (uvicorn shuts down gracefully on SIGINT and
-    # SIGTERM, then raises the signal again with the previous handlers): whenever it
-    # comes, the twin is closed (the servos' torque off) and the exit status is 0.
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    # SIGTERM stops like Ctrl-C from the start (uvicorn shuts down gracefully on SIGINT
+    # and SIGTERM, then raises the signal again with the previous handlers): whenever
+    # it comes, the twin is closed (the servos' torque off) and the exit status is 0.
+    previous = signal.signal(signal.SIGTERM, terminate)
     try:
-        with contextlib.suppress(KeyboardInterrupt), contextlib.ExitStack() as stack:
+        with (
+            contextlib.suppress(KeyboardInterrupt, _Terminated),
+            contextlib.ExitStack() as stack,
+        ):
             _serve_twin(args, design, token, stack, serve)
             # Served: nothing interrupts the closing below (torque off, viewer down).
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
