@@ -13,7 +13,9 @@ with a payload, and :mod:`spm_pin.optimize.study` runs resumable studies on Optu
 writes what a study found (the Pareto front's plot, the best designs as design files, a
 page showing them and a JSON report), as ``spm optimize --out DIR`` does.
 :mod:`spm_pin.optimize.validation` holds problems with known answers (the dexterity
-at home in closed form, and the designs that make it isotropic).
+at home in closed form, and the designs that make it isotropic; the published
+isotropic design of the spherical 3-RRR, the Agile Eye's, at its reference
+configuration).
 """
 
 from ._engines import ClusterError
@@ -31,7 +33,16 @@ from .results import ResultFiles, best_trials, load_study_result, pareto_figure,
 from .scoring import WorkspaceScore, safe_workspace_score
 from .study import OBJECTIVES, StudyResult, StudySettings, TrialRecord, evaluate, run_study
 from .torque import Motion, Payload, PeakTorque, cone_motion, motion_inputs, peak_torque
-from .validation import home_dexterity, home_dexterity_right_angle, isotropic_alpha2
+from .validation import (
+    find_orthogonal_optimum,
+    home_dexterity,
+    home_dexterity_right_angle,
+    isotropic_alpha2,
+    orthogonal_design,
+    orthogonal_reference_dexterity,
+    reference_dexterity,
+    reference_orientation,
+)
 
 __all__ = [
     "OBJECTIVES",
@@ -53,6 +64,7 @@ __all__ = [
     "cone_motion",
     "envelope",
     "evaluate",
+    "find_orthogonal_optimum",
     "global_conditioning_index",
     "home_clearance",
     "home_dexterity",
@@ -60,8 +72,12 @@ __all__ = [
     "isotropic_alpha2",
     "load_study_result",
     "motion_inputs",
+    "orthogonal_design",
+    "orthogonal_reference_dexterity",
     "pareto_figure",
     "peak_torque",
+    "reference_dexterity",
+    "reference_orientation",
     "run_study",
     "safe_workspace_score",
     "write_results",
