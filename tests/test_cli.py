@@ -541,3 +541,29 @@ def test_view_option_reaches_the_page(
     status, _, err = run(capsys, command, *where, "--html", str(target), "--view", "diagonal")
     assert status == 2
     assert "--view: invalid choice: 'diagonal' (choose from 'iso', 'top', 'front', 'side')" in err
+
+
+def test_ctrl_c_is_one_line_and_status_130(tmp_path: Path) -> None:
+    """A real SIGINT to a long ``spm workspace``: one line on stderr, no traceback."""
+    import signal
+    import subprocess
+    import time
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spm_pin", "workspace", "--step", "0.25", "--no-plots",
+         "--out", str(tmp_path / "map")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    try:
+        time.sleep(4.0)  # past the imports, into the map
+        assert process.poll() is None
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err
+    assert err.rstrip().splitlines()[-1].endswith("spm: interrupted")

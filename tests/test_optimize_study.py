@@ -217,3 +217,57 @@ def test_spm_optimize_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[s
         assert main(bad) == 2
         err = capsys.readouterr().err
         assert err.startswith("spm: error: ") and err.count("\n") == 1
+
+
+def test_spm_optimize_ctrl_c_keeps_the_study_and_says_so(tmp_path: Path) -> None:
+    """Ctrl-C (a real SIGINT to a real ``spm optimize``) ends with one line on stderr,
+    no traceback, exit status 130; the finished trials are in the storage, the one
+    running is marked failed, and the same command continues the study."""
+    import re
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from spm_pin.optimize.results import load_study_result
+
+    storage = tmp_path / "study.log"
+    argv = [
+        sys.executable, "-m", "spm_pin", "optimize", "--objectives", "tilt",
+        "--vary", "alpha1=35:75", "alpha2=60:120", "--step", "8", "--seed", "3",
+        "--allow-home-collision", "--quiet", "--storage", str(storage),
+    ]  # fmt: skip
+    process = subprocess.Popen(
+        [*argv, "--trials", "10000"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and process.poll() is None:
+            if storage.exists() and len(re.findall(r'"state":\s*1\b', storage.read_text())) >= 2:
+                break  # two trials completed (COMPLETE is state 1 in Optuna's journal)
+            time.sleep(0.1)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err
+    assert err.strip().splitlines()[-1] == (
+        f"spm optimize: interrupted; the finished trials are kept in {storage}: run the "
+        "same command again to continue"
+    )
+    stopped = load_study_result(storage)
+    done = len(stopped.trials)
+    assert done >= 2
+    assert not any(t.state == "RUNNING" for t in stopped.trials)
+    resumed = subprocess.run(
+        [*argv, "--trials", str(done + 2), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    record = json.loads(resumed.stdout)
+    assert record["trials"] == done + 2 and record["new_trials"] == 2

@@ -73,7 +73,7 @@ from . import (
     view,
     workspace,
 )
-from ._options import EXIT_OVER_LIMITS, EXIT_USAGE
+from ._options import EXIT_INTERRUPTED, EXIT_OVER_LIMITS, EXIT_USAGE
 from ._options import Parser as _Parser
 from ._options import UsageError as _UsageError
 from ._options import one_line as _one_line
@@ -144,6 +144,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return status
     except SystemExit as exc:  # --help and --version
         return exc.code if isinstance(exc.code, int) else 0
+    except KeyboardInterrupt:  # Ctrl-C: a line, not a traceback
+        print("spm: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except BrokenPipeError:  # the reader went away (spm demo | head): stop quietly
         with contextlib.suppress(OSError, ValueError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -15,6 +15,7 @@ from ..kinematics._common import ANGLE_LIMIT
 
 __all__ = [
     "ANGLE_LIMIT_DEG",
+    "EXIT_INTERRUPTED",
     "EXIT_OVER_LIMITS",
     "EXIT_USAGE",
     "NEGATIVE_ARGUMENT",
@@ -41,6 +42,8 @@ EXIT_USAGE = 2
 #: Exit status of ``spm torques`` when the motion exceeds the servos' torque-speed
 #: envelope (the report is printed all the same).
 EXIT_OVER_LIMITS = 1
+#: Exit status after Ctrl-C (128 + SIGINT, as a shell reports it).
+EXIT_INTERRUPTED = 130
 
 #: Numbers that argparse must treat as positionals, not options: negative decimals
 #: with exponents, -inf/-nan (rejected later with a clear message), working-mode

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from .._records import Record
-from ._options import UsageError
+from ._options import EXIT_INTERRUPTED, UsageError
 from ._options import add_design_option as _add_design_option
 from ._options import add_json_option as _add_json_option
 from ._options import design_of as _design
@@ -111,19 +111,29 @@ def _run_optimize(args: argparse.Namespace) -> int:
             raise UsageError(
                 "--workers and --scheduler need Dask: pip install 'dask[distributed]'"
             ) from None
-    result = run_study(
-        space,
-        args.objectives,
-        args.trials,
-        settings=settings,
-        seed=args.seed,
-        storage=args.storage,
-        population_size=args.population,
-        enqueue=enqueue,
-        progress=progress,
-        workers=args.workers,
-        scheduler=args.scheduler,
-    )
+    try:
+        result = run_study(
+            space,
+            args.objectives,
+            args.trials,
+            settings=settings,
+            seed=args.seed,
+            storage=args.storage,
+            population_size=args.population,
+            enqueue=enqueue,
+            progress=progress,
+            workers=args.workers,
+            scheduler=args.scheduler,
+        )
+    except KeyboardInterrupt:
+        kept = (
+            f"the finished trials are kept in {args.storage}: run the same command again "
+            "to continue"
+            if args.storage is not None
+            else "nothing was kept (give --storage FILE to make a study resumable)"
+        )
+        print(f"spm optimize: interrupted; {kept}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     record: Record = {
         "design": base.name,
         "variables": [[v.name, v.low, v.high] for v in space.variables],

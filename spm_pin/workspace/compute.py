@@ -191,8 +191,15 @@ def workspace_map(
     elif count_workers > 1:
         with concurrent.futures.ProcessPoolExecutor(max_workers=count_workers) as pool:
             chunks = run(pool)
-    else:
-        chunks = run(_InlineExecutor())
+    else:  # one chunk after the other: the bar moves, and Ctrl-C stops at once
+        bar = _progress(n, progress)
+        try:
+            chunks = []
+            for s in starts:
+                chunks.append(chunk_task(design, theta[s : s + chunk], settings))
+                bar(min(chunk, n - s))
+        finally:
+            bar(None)
     fields = {name: np.concatenate([c[name] for c in chunks]) for name in chunks[0]}
     fields["d12_deg"] = np.asarray(d12, dtype=float)
     fields["d23_deg"] = np.asarray(d23, dtype=float)
@@ -207,18 +214,6 @@ def workspace_map(
         step_deg=step,
         seed=used_seed,
     )
-
-
-class _InlineExecutor:
-    """Runs each task at once in this process (the default with one worker)."""
-
-    def submit(self, fn: Callable[..., Any], *args: Any) -> concurrent.futures.Future[Any]:
-        future: concurrent.futures.Future[Any] = concurrent.futures.Future()
-        try:
-            future.set_result(fn(*args))
-        except BaseException as exc:  # handed to the caller through the future
-            future.set_exception(exc)
-        return future
 
 
 def _progress(total: int, enabled: bool) -> Callable[[int | None], None]:
