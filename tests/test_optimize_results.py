@@ -428,3 +428,28 @@ def test_spm_optimize_writes_the_results(
         assert main(bad) == 2
         err = capsys.readouterr().err
         assert err.startswith("spm: error: ") and err.count("\n") == 1
+
+
+def test_spm_optimize_compares_with_its_own_base_design(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With ``--design FILE`` the report's reference is that design, scored by the
+    study's objectives, not the prototype."""
+    base = dataclasses.replace(spm.SPMDesign.coaxial(45.0, 80.0, 90.0), name="mine")
+    design_file = base.save(tmp_path / "mine.toml")
+    out = tmp_path / "results"
+    argv = [
+        "optimize", "--objectives", "max_tilt", "--vary", "alpha1=35:75", "--trials", "1",
+        "--step", "8", "--design", str(design_file), "--allow-home-collision", "--quiet",
+        "--out", str(out), "--json",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    capsys.readouterr()
+    reference = json.loads((out / "report.json").read_text(encoding="utf-8"))["prototype"]
+    assert reference["name"] == "mine" and reference["error"] is None
+    assert reference["values"] == {"alpha1_deg": pytest.approx(45.0, abs=1e-12)}
+    score = safe_workspace_score(base, step_deg=8.0)
+    assert reference["scores"]["max_tilt"] == score.max_safe_tilt_deg
+    assert (
+        score.max_safe_tilt_deg != safe_workspace_score("prototype", step_deg=8.0).max_safe_tilt_deg
+    )

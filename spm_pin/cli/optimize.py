@@ -147,7 +147,8 @@ def _run_optimize(args: argparse.Namespace) -> int:
     if args.out is not None:
         from ..optimize.results import write_results
 
-        written = write_results(result, args.out, best=args.best)
+        # the reference of the report is the design the study varies (--design)
+        written = write_results(result, args.out, best=args.best, prototype=base)
         record["out"] = str(args.out)
         record["files"] = [str(path) for path in written.files]
         record["notes"] = written.report["notes"]
@@ -189,7 +190,8 @@ def add_parser(commands: Any) -> None:
         "design within bounds, score each candidate by the objectives (NSGA-II for "
         "several, TPE for one), under constraints, and print the Pareto front. With --out "
         "DIR, write there pareto.png, the best designs as design files best_1.toml ... "
-        "(for --design FILE), designs.html and report.json. With "
+        "(for --design FILE), designs.html and report.json (with the base design, "
+        "--design, scored for comparison). With "
         "--storage FILE the study is kept in an Optuna journal file (or an RDB URL such "
         "as sqlite:///study.db): running again continues it up to --trials in all. "
         "--workers N or --scheduler ADDRESS evaluate the designs on Dask (this process "
