@@ -163,7 +163,11 @@ def test_a_saved_cover_reads_back_the_same_cells(
     path = tmp_path / "cover.npz"
     grown.save(path)
     loaded = SafeCover(safe)
+    safe.checker._plans.clear()  # made again on demand
     loaded.load(path)
+    # Loading made the collision check of every level's margin: no plan pays for it.
+    for level in range(loaded.levels + 1):
+        assert (loaded._margin(level), False, None) in safe.checker._plans, level
     assert np.array_equal(loaded._roots, grown._roots)
     assert loaded._cells == grown._cells and loaded._minima == grown._minima
     # The path is certified from the file alone, unchanged.

@@ -258,6 +258,17 @@ class CollisionChecker:
         inspection."""
         return self._plan(margin, include_fixed).engine.geometry_model
 
+    def prepare(self, margin: float = 0.0, include_fixed: bool = True) -> None:
+        """Make the check at ``margin`` now (its relative-angle tables and engine,
+        tens of milliseconds), so that no later check pays for it: what a loop with
+        a time budget calls at start-up for each margin it uses. The checker keeps
+        the set-ups of the last :data:`~spm_pin.collision.pairs.PLAN_CACHE` margins.
+
+        Raises:
+            InputError: a bad ``margin``.
+        """
+        self._plan(margin, include_fixed)
+
     def collisions(
         self, x: npt.ArrayLike, *, margin: float = 0.0, include_fixed: bool = True
     ) -> list[LinkPair]:

@@ -117,6 +117,18 @@ class SafeCover:
     def _radius(self, level: int) -> float:
         return float(self.root / 2**level / math.sqrt(2.0))
 
+    def _margin(self, level: int) -> float:
+        """The clearance margin [m] that certifies a cell of ``level`` from a corner."""
+        s, lip = self.safe.settings, self.safe.lipschitz
+        return s.margin + YAW_TOLERANCE_M + lip.clearance * self._radius(level)
+
+    def prepare(self) -> None:
+        """Make the collision checks of every level's margin now (about 70 ms each for
+        the prototype), so that no plan pays for them later; :meth:`load` and
+        :meth:`fill` call it."""
+        for level in range(self.levels + 1):
+            self.safe.checker.prepare(self._margin(level), include_fixed=False)
+
     def _ensure(self, keys: list[tuple[int, int]]) -> None:
         """Evaluate the vertices not seen yet (one batch of kinematics)."""
         todo = [k for k in dict.fromkeys(keys) if k not in self._vertices]
@@ -179,8 +191,7 @@ class SafeCover:
         )
         if ok:
             self.stats["checks"] += 1
-            margin = s.margin + YAW_TOLERANCE_M + lip.clearance * rho
-            ok = not safe.checker.collisions(q, margin=margin, include_fixed=False)
+            ok = not safe.checker.collisions(q, margin=self._margin(level), include_fixed=False)
         self._passes[(key[0], key[1], level)] = ok
         return ok
 
@@ -429,6 +440,7 @@ class SafeCover:
         still decided when a path needs them). The prototype to level 3: about a
         minute and 6 MB saved; each level more doubles both. ``progress(level,
         max_level)`` is called after each level."""
+        self.prepare()
         safe = self.safe
         n = self._roots.shape[0]
         step = self.root
@@ -508,7 +520,7 @@ class SafeCover:
 
     def load(self, path: str | os.PathLike[str]) -> None:
         """Take the cells decided in a file written by :meth:`save` for the same
-        design, settings and bounds.
+        design, settings and bounds, and :meth:`prepare` the collision checks.
 
         Raises:
             InputError: a file that is not such a cover, or one of another design,
@@ -538,3 +550,4 @@ class SafeCover:
         self._minima.update(
             {(int(a), int(b), int(c)): (float(s), float(d)) for a, b, c, s, d in minima}
         )
+        self.prepare()
