@@ -1,0 +1,649 @@
+r"""The reduced dynamics of :mod:`spm_pin.dynamics.reduced`, row by row in floats.
+
+:class:`~spm_pin.dynamics.ReducedDynamics` evaluates its equations in numpy over a
+batch axis; for one robot, or for the substeps of an environment, numpy's per-call
+overhead on (N, 3, 3) arrays is nearly all of the time. This module repeats the same
+equations for one row at a time in Python floats and tuples, in a form that numba
+compiles unchanged (:func:`spm_pin._jit.kernels` of :data:`KERNELS`), with loops over
+the rows of the batch:
+
+* :func:`rotations`: the warm-started Newton solve of the platform rotation on the
+  closures w_i . R v_i0 = cos a2 and the home sign rule (a per-row flag: rows that
+  fail it are solved by :func:`~spm_pin.forward_kinematics` in Python, as before);
+* :func:`terms`: M, c, g, the friction torques, J and S (a per-row singularity flag);
+* :func:`accelerations`: theta_ddot = M^-1 (tau + tau_f - c - g);
+* :func:`step`: rotation, accelerations and the integrator (semi-implicit Euler or
+  rk4) of a whole time step in one call (a per-row status; rows that are not
+  settled there take the Python path).
+
+The constants (:data:`Constants`, built by ``ReducedDynamics``) travel as one tuple
+of arrays and floats. The results agree with the numpy path to rounding (the sums
+are taken in another order; ``tests/test_reduced_kernel`` compares them), not bit for
+bit. Nothing here checks inputs: the callers pass checked, C-contiguous float arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "KERNELS",
+    "STATUS_OK",
+    "STATUS_ROTATION",
+    "STATUS_SINGULAR",
+    "accelerations",
+    "rotations",
+    "step",
+    "terms",
+]
+
+FloatArray = npt.NDArray[np.float64]
+Vec = tuple[float, float, float]
+Mat = tuple[Vec, Vec, Vec]  # rows
+
+#: Row status of :func:`step`: settled.
+STATUS_OK = 0
+#: Row status: the warm-started rotation failed (residual or home sign rule) at a
+#: stage; the Python path solves it by forward kinematics.
+STATUS_ROTATION = 1
+#: Row status: a parallel (type II) singularity at a stage.
+STATUS_SINGULAR = 2
+
+#: The constants of the kernels, in this order (see ``ReducedDynamics._constants``):
+#: u, w0, v0 (3, 3) rows; frame_inv (3, 3, 3); dist_inertia (3, 3, 3); plat_inertia
+#: (3, 3); prox_inertia (3,) (u_i^T I_O u_i of the proximal links); prox_moment
+#: (3, 3); dist_moment (3, 3); plat_moment (3,); gravity (3,); viscous (9,); coulomb
+#: (9,); then cos_a2, smoothing_speed, friction (0.0 none, 1.0 joint friction),
+#: home_sign (sign of det A at home), sign_tol, singular_det, closure_tol,
+#: newton_iterations (int); armature (3,).
+Constants = tuple[Any, ...]
+
+
+# ------------------------------------------------------------------ 3-vectors
+def _dot(a: Vec, b: Vec) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec, b: Vec) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _rotate(axis: Vec, c: float, s: float, x: Vec) -> Vec:
+    """Rodrigues, as ``reduced._rotate``: along + c (x - along) + s (axis x x)."""
+    d = _dot(axis, x)
+    t = _cross(axis, x)
+    return (
+        d * axis[0] + c * (x[0] - d * axis[0]) + s * t[0],
+        d * axis[1] + c * (x[1] - d * axis[1]) + s * t[1],
+        d * axis[2] + c * (x[2] - d * axis[2]) + s * t[2],
+    )
+
+
+def _mat_vec(m: Mat, x: Vec) -> Vec:
+    """m x."""
+    return (_dot(m[0], x), _dot(m[1], x), _dot(m[2], x))
+
+
+def _mat_t_vec(m: Mat, x: Vec) -> Vec:
+    """m^T x."""
+    return (
+        m[0][0] * x[0] + m[1][0] * x[1] + m[2][0] * x[2],
+        m[0][1] * x[0] + m[1][1] * x[1] + m[2][1] * x[2],
+        m[0][2] * x[0] + m[1][2] * x[1] + m[2][2] * x[2],
+    )
+
+
+def _mat_mul(a: Mat, b: Mat) -> Mat:
+    """a b."""
+    return (_mat_t_vec(b, a[0]), _mat_t_vec(b, a[1]), _mat_t_vec(b, a[2]))
+
+
+def _mat_t_mul(a: Mat, b: Mat) -> Mat:
+    """a^T b."""
+    c0 = (a[0][0], a[1][0], a[2][0])
+    c1 = (a[0][1], a[1][1], a[2][1])
+    c2 = (a[0][2], a[1][2], a[2][2])
+    return (_mat_t_vec(b, c0), _mat_t_vec(b, c1), _mat_t_vec(b, c2))
+
+
+def _vec_of(array: FloatArray) -> Vec:
+    """A (3,) array as a tuple."""
+    return (array[0], array[1], array[2])
+
+
+def _mat_of(array: FloatArray) -> Mat:
+    """A (3, 3) array as rows."""
+    return (
+        (array[0, 0], array[0, 1], array[0, 2]),
+        (array[1, 0], array[1, 1], array[1, 2]),
+        (array[2, 0], array[2, 1], array[2, 2]),
+    )
+
+
+def _put_mat(out: FloatArray, m: Mat) -> None:
+    """Write rows m into a (3, 3) array."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = m[i][j]
+
+
+def _solve3(m: Mat, b: Vec) -> Vec:
+    """m^-1 b by Gaussian elimination with partial pivoting (LAPACK's LU)."""
+    r0, r1, r2 = m
+    b0, b1, b2 = b
+    if abs(r1[0]) > abs(r0[0]) and abs(r1[0]) >= abs(r2[0]):
+        r0, r1, b0, b1 = r1, r0, b1, b0
+    elif abs(r2[0]) > abs(r0[0]):
+        r0, r2, b0, b2 = r2, r0, b2, b0
+    f1 = r1[0] / r0[0]
+    f2 = r2[0] / r0[0]
+    a11, a12, c1 = r1[1] - f1 * r0[1], r1[2] - f1 * r0[2], b1 - f1 * b0
+    a21, a22, c2 = r2[1] - f2 * r0[1], r2[2] - f2 * r0[2], b2 - f2 * b0
+    if abs(a21) > abs(a11):
+        a11, a12, c1, a21, a22, c2 = a21, a22, c2, a11, a12, c1
+    f = a21 / a11
+    x2 = (c2 - f * c1) / (a22 - f * a12)
+    x1 = (c1 - a12 * x2) / a11
+    x0 = (b0 - r0[1] * x1 - r0[2] * x2) / r0[0]
+    return (x0, x1, x2)
+
+
+def _unit(i: int) -> Vec:
+    """e_i."""
+    return (1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0)
+
+
+def _scale(f: float, x: Vec) -> Vec:
+    return (f * x[0], f * x[1], f * x[2])
+
+
+def _leg_row(vJ: Vec, vu: float, vw: float, e: Vec, p: Vec) -> Vec:
+    """Row i of Chi: (v_i^T J)_j - (v_i . u_i) e_ij - (v_i . w_i) Psi_ij."""
+    return (
+        vJ[0] - vu * e[0] - vw * p[0],
+        vJ[1] - vu * e[1] - vw * p[1],
+        vJ[2] - vu * e[2] - vw * p[2],
+    )
+
+
+def _leg_matrix(x: Vec, e: Vec, y: Vec, p: Vec) -> Mat:
+    """x e^T + y p^T (rows)."""
+    return (
+        (x[0] * e[0] + y[0] * p[0], x[0] * e[1] + y[0] * p[1], x[0] * e[2] + y[0] * p[2]),
+        (x[1] * e[0] + y[1] * p[0], x[1] * e[1] + y[1] * p[1], x[1] * e[2] + y[1] * p[2]),
+        (x[2] * e[0] + y[2] * p[0], x[2] * e[1] + y[2] * p[1], x[2] * e[2] + y[2] * p[2]),
+    )
+
+
+def _rate_rhs(
+    u: Vec, w: Vec, v: Vec, uxw: Vec, w_dot: Vec, v_dot: Vec, rate: float, omega_p: Vec
+) -> float:
+    """Row i of B_dot theta_dot - A_dot omega_p (a_dot = w_dot x v + w x v_dot,
+    b_dot = (u x w_dot) . v + (u x w) . v_dot)."""
+    p = _cross(w_dot, v)
+    q = _cross(w, v_dot)
+    a_dot = (p[0] + q[0], p[1] + q[1], p[2] + q[2])
+    b_dot = _dot(_cross(u, w_dot), v) + _dot(uxw, v_dot)
+    return b_dot * rate - _dot(a_dot, omega_p)
+
+
+# ------------------------------------------------------------------ kinematics
+def _proximal(theta: Vec, u: Mat, w0: Mat) -> Mat:
+    """Rows w_i(theta_i): w0_i turned about u_i by theta_i."""
+    return (
+        _rotate(u[0], math.cos(theta[0]), math.sin(theta[0]), w0[0]),
+        _rotate(u[1], math.cos(theta[1]), math.sin(theta[1]), w0[1]),
+        _rotate(u[2], math.cos(theta[2]), math.sin(theta[2]), w0[2]),
+    )
+
+
+def _cofactors(a: Mat) -> Mat:
+    """Rows a_1 x a_2, a_2 x a_0, a_0 x a_1 (the columns of det(A) A^-1)."""
+    return (_cross(a[1], a[2]), _cross(a[2], a[0]), _cross(a[0], a[1]))
+
+
+def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int) -> Any:
+    """The warm-started Newton of ``ReducedDynamics._rotation`` on one row:
+    (R, the residual max |w_i . R v_i0 - cos a2| of the last iterate checked)."""
+    residual = math.inf
+    for _ in range(iterations):
+        v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+        r = (_dot(w[0], v[0]) - cos_a2, _dot(w[1], v[1]) - cos_a2, _dot(w[2], v[2]) - cos_a2)
+        residual = max(abs(r[0]), abs(r[1]), abs(r[2]))
+        if math.isnan(r[0]) or math.isnan(r[1]) or math.isnan(r[2]):
+            residual = math.nan
+        if residual <= stop:
+            break
+        a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
+        cof = _cofactors(a)
+        det = _dot(a[0], cof[0])
+        if not abs(det) > 1e-300:
+            det = 1e-300
+        delta = (
+            (r[0] * cof[0][0] + r[1] * cof[1][0] + r[2] * cof[2][0]) / det,
+            (r[0] * cof[0][1] + r[1] * cof[1][1] + r[2] * cof[2][1]) / det,
+            (r[0] * cof[0][2] + r[1] * cof[1][2] + r[2] * cof[2][2]) / det,
+        )
+        angle = math.sqrt(_dot(delta, delta))
+        safe = angle if angle > 0.0 else 1.0
+        axis = (delta[0] / safe, delta[1] / safe, delta[2] / safe)
+        c, s = math.cos(angle), math.sin(angle)
+        # turn each column of R about the axis
+        k0 = _rotate(axis, c, s, (R[0][0], R[1][0], R[2][0]))
+        k1 = _rotate(axis, c, s, (R[0][1], R[1][1], R[2][1]))
+        k2 = _rotate(axis, c, s, (R[0][2], R[1][2], R[2][2]))
+        R = ((k0[0], k1[0], k2[0]), (k0[1], k1[1], k2[1]), (k0[2], k1[2], k2[2]))
+    return R, residual
+
+
+def _home_rotation(theta: Vec, R: Mat, k: Constants) -> tuple[bool, Mat]:
+    """(settled, R): Newton from R, accepted when the residual is within the closure
+    tolerance and the home sign rule holds (every b_ii > sign_tol, det A of the sign
+    it has at home and larger than sign_tol in size)."""
+    u, w0, v0 = _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2])
+    cos_a2, home_sign, sign_tol, tol, iterations = k[13], k[16], k[17], k[19], k[20]
+    w = _proximal(theta, u, w0)
+    R, residual = _newton(R, w, v0, cos_a2, 0.1 * tol, int(iterations))
+    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+    b0 = _dot(_cross(u[0], w[0]), v[0])
+    b1 = _dot(_cross(u[1], w[1]), v[1])
+    b2 = _dot(_cross(u[2], w[2]), v[2])
+    a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
+    det_a = _dot(a[0], _cross(a[1], a[2]))
+    same_sign = (det_a > 0.0 and home_sign > 0.0) or (det_a < 0.0 and home_sign < 0.0)
+    home = b0 > sign_tol and b1 > sign_tol and b2 > sign_tol and same_sign
+    home = home and abs(det_a) > sign_tol
+    ok = math.isfinite(residual) and residual <= tol and home
+    return ok, R
+
+
+# ------------------------------------------------------------------ dynamics
+def _row_terms(theta: Vec, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
+    """Every term of one state, as ``ReducedDynamics._terms`` and ``_bias``:
+    (singular, det A, M, c, g, friction, J, Psi, Chi)."""
+    u, w0, v0 = _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2])
+    frame_inv, dist_inertia = k[3], k[4]
+    I_p = _mat_of(k[5])
+    prox, armature = k[6], k[21]
+    prox_diag = (prox[0] + armature[0], prox[1] + armature[1], prox[2] + armature[2])
+    prox_moment, dist_moment = k[7], k[8]
+    plat_moment, grav = _vec_of(k[9]), _vec_of(k[10])
+    viscous, coulomb = k[11], k[12]
+    smoothing, mode, singular_det = k[14], k[15], k[18]
+    w = _proximal(theta, u, w0)
+    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+    a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
+    uxw = (_cross(u[0], w[0]), _cross(u[1], w[1]), _cross(u[2], w[2]))
+    b = (_dot(uxw[0], v[0]), _dot(uxw[1], v[1]), _dot(uxw[2], v[2]))
+    cof = _cofactors(a)
+    det = _dot(a[0], cof[0])
+    aa = (_dot(a[0], a[0]), _dot(a[1], a[1]), _dot(a[2], a[2]))
+    scale = math.sqrt(aa[0]) * math.sqrt(aa[1]) * math.sqrt(aa[2])
+    zero: Mat = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    zero3: Vec = (0.0, 0.0, 0.0)
+    if not abs(det) > singular_det * scale:
+        return True, det, zero, zero3, zero3, zero3, zero, zero, zero
+    # J = A^-1 B: J[k][j] = cof[j][k] b_j / det
+    q = (b[0] / det, b[1] / det, b[2] / det)
+    J: Mat = (
+        (cof[0][0] * q[0], cof[1][0] * q[1], cof[2][0] * q[2]),
+        (cof[0][1] * q[0], cof[1][1] * q[1], cof[2][1] * q[2]),
+        (cof[0][2] * q[0], cof[1][2] * q[1], cof[2][2] * q[2]),
+    )
+    s0 = _cross(v[0], a[0])
+    s1 = _cross(v[1], a[1])
+    s2 = _cross(v[2], a[2])
+    s = (
+        (s0[0] / aa[0], s0[1] / aa[0], s0[2] / aa[0]),
+        (s1[0] / aa[1], s1[1] / aa[1], s1[2] / aa[1]),
+        (s2[0] / aa[2], s2[1] / aa[2], s2[2] / aa[2]),
+    )
+    sJ = (_mat_t_vec(J, s[0]), _mat_t_vec(J, s[1]), _mat_t_vec(J, s[2]))
+    su = (_dot(s[0], u[0]), _dot(s[1], u[1]), _dot(s[2], u[2]))
+    Psi: Mat = (
+        (sJ[0][0] - su[0], sJ[0][1], sJ[0][2]),
+        (sJ[1][0], sJ[1][1] - su[1], sJ[1][2]),
+        (sJ[2][0], sJ[2][1], sJ[2][2] - su[2]),
+    )
+    vJ = (_mat_t_vec(J, v[0]), _mat_t_vec(J, v[1]), _mat_t_vec(J, v[2]))
+    vu = (_dot(v[0], u[0]), _dot(v[1], u[1]), _dot(v[2], u[2]))
+    vw = (_dot(v[0], w[0]), _dot(v[1], w[1]), _dot(v[2], w[2]))
+    Chi: Mat = (
+        _leg_row(vJ[0], vu[0], vw[0], _unit(0), Psi[0]),
+        _leg_row(vJ[1], vu[1], vw[1], _unit(1), Psi[1]),
+        _leg_row(vJ[2], vu[2], vw[2], _unit(2), Psi[2]),
+    )
+    # omega_d,i = W_d,i theta_dot, W_d,i[m][j] = u_i[m] e_ij + w_i[m] Psi_i[j]
+    M00 = M01 = M02 = M11 = M12 = M22 = 0.0
+    g0 = g1 = g2 = 0.0
+    c0 = c1 = c2 = 0.0
+    omega_p = _mat_vec(J, rate)
+    psi_dot = _mat_vec(Psi, rate)
+    chi_dot = _mat_vec(Chi, rate)
+    w_dot = (
+        _scale(rate[0], uxw[0]),
+        _scale(rate[1], uxw[1]),
+        _scale(rate[2], uxw[2]),
+    )  # the proximal links turn w_i about u_i
+    v_dot = (_cross(omega_p, v[0]), _cross(omega_p, v[1]), _cross(omega_p, v[2]))
+    alpha_p = zero3
+    if bias:
+        # A alpha_p = B_dot theta_dot - A_dot omega_p  (theta_ddot = 0)
+        rhs = (
+            _rate_rhs(u[0], w[0], v[0], uxw[0], w_dot[0], v_dot[0], rate[0], omega_p),
+            _rate_rhs(u[1], w[1], v[1], uxw[1], w_dot[1], v_dot[1], rate[1], omega_p),
+            _rate_rhs(u[2], w[2], v[2], uxw[2], w_dot[2], v_dot[2], rate[2], omega_p),
+        )
+        alpha_p = _mat_t_vec(cof, rhs)
+        alpha_p = (alpha_p[0] / det, alpha_p[1] / det, alpha_p[2] / det)
+    for i in range(3):
+        wi, ui = w[i], u[i]
+        # omega_d,i = W theta_dot, W[m][j] = u_i[m] e_ij + w_i[m] Psi_i[j]
+        W = _leg_matrix(ui, _unit(i), wi, Psi[i])
+        # D_i = [w_i v_i a_i] F_i^-1
+        F: Mat = (
+            (wi[0], v[i][0], a[i][0]),
+            (wi[1], v[i][1], a[i][1]),
+            (wi[2], v[i][2], a[i][2]),
+        )
+        D = _mat_mul(F, _mat_of(frame_inv[i]))
+        I_d = _mat_of(dist_inertia[i])
+        body = _mat_t_mul(D, W)  # D^T W
+        inertia_body = _mat_mul(I_d, body)
+        part = _mat_t_mul(body, inertia_body)
+        M00 += part[0][0]
+        M01 += part[0][1]
+        M02 += part[0][2]
+        M11 += part[1][1]
+        M12 += part[1][2]
+        M22 += part[2][2]
+        # gravity: the distal link's weight, and the proximal link's
+        dist_h = _mat_vec(D, _vec_of(dist_moment[i]))
+        torque = _mat_t_vec(W, _cross(dist_h, grav))
+        g0 -= torque[0]
+        g1 -= torque[1]
+        g2 -= torque[2]
+        prox_h = _rotate(ui, math.cos(theta[i]), math.sin(theta[i]), _vec_of(prox_moment[i]))
+        gi = -_dot(ui, _cross(prox_h, grav))
+        if i == 0:
+            g0 += gi
+        elif i == 1:
+            g1 += gi
+        else:
+            g2 += gi
+        if bias:
+            psi_ddot = _dot(
+                (
+                    alpha_p[0] - psi_dot[i] * w_dot[i][0] - chi_dot[i] * v_dot[i][0],
+                    alpha_p[1] - psi_dot[i] * w_dot[i][1] - chi_dot[i] * v_dot[i][1],
+                    alpha_p[2] - psi_dot[i] * w_dot[i][2] - chi_dot[i] * v_dot[i][2],
+                ),
+                s[i],
+            )
+            alpha_d = (
+                psi_ddot * wi[0] + psi_dot[i] * w_dot[i][0],
+                psi_ddot * wi[1] + psi_dot[i] * w_dot[i][1],
+                psi_ddot * wi[2] + psi_dot[i] * w_dot[i][2],
+            )
+            omega_d = (
+                ui[0] * rate[i] + wi[0] * psi_dot[i],
+                ui[1] * rate[i] + wi[1] * psi_dot[i],
+                ui[2] * rate[i] + wi[2] * psi_dot[i],
+            )
+            od = _mat_t_vec(D, omega_d)
+            ad = _mat_t_vec(D, alpha_d)
+            t1 = _mat_vec(I_d, ad)
+            t2 = _cross(od, _mat_vec(I_d, od))
+            world = _mat_vec(D, (t1[0] + t2[0], t1[1] + t2[1], t1[2] + t2[2]))
+            ci = _mat_t_vec(W, world)
+            c0 += ci[0]
+            c1 += ci[1]
+            c2 += ci[2]
+    # the platform
+    Jp = _mat_t_mul(R, J)  # R^T J
+    part = _mat_t_mul(Jp, _mat_mul(I_p, Jp))
+    M00 += part[0][0] + prox_diag[0]
+    M01 += part[0][1]
+    M02 += part[0][2]
+    M11 += part[1][1] + prox_diag[1]
+    M12 += part[1][2]
+    M22 += part[2][2] + prox_diag[2]
+    M: Mat = ((M00, M01, M02), (M01, M11, M12), (M02, M12, M22))
+    plat_h = _mat_vec(R, plat_moment)
+    torque = _mat_t_vec(J, _cross(plat_h, grav))
+    g: Vec = (g0 - torque[0], g1 - torque[1], g2 - torque[2])
+    c: Vec = (c0, c1, c2)
+    if bias:
+        op = _mat_t_vec(R, omega_p)
+        ap = _mat_t_vec(R, alpha_p)
+        t1 = _mat_vec(I_p, ap)
+        t2 = _cross(op, _mat_vec(I_p, op))
+        world = _mat_vec(R, (t1[0] + t2[0], t1[1] + t2[1], t1[2] + t2[2]))
+        cp = _mat_t_vec(J, world)
+        c = (c0 + cp[0], c1 + cp[1], c2 + cp[2])
+    friction = zero3
+    if mode > 0.0:
+        f0 = f1 = f2 = 0.0
+        for i in range(3):
+            # joints u_i, w_i, v_i of leg i: rates theta_dot_i, psi_dot_i, chi_dot_i
+            rows = (_unit(i), Psi[i], Chi[i])
+            joint_rates = (rate[i], psi_dot[i], chi_dot[i])
+            for m in range(3):
+                jr = joint_rates[m]
+                f = -viscous[3 * i + m] * jr
+                if coulomb[3 * i + m] != 0.0:  # as numpy: zero adds nothing
+                    f -= coulomb[3 * i + m] * math.tanh(jr / smoothing)
+                f0 += rows[m][0] * f
+                f1 += rows[m][1] * f
+                f2 += rows[m][2] * f
+        friction = (f0, f1, f2)
+    return False, det, M, c, g, friction, J, Psi, Chi
+
+
+def _row_acceleration(theta: Vec, rate: Vec, tau: Vec, R: Mat, k: Constants) -> Any:
+    """(singular, det A, theta_ddot) of one state."""
+    singular, det, M, c, g, friction, _, _, _ = _row_terms(theta, rate, R, k, True)
+    if singular:
+        return True, det, (0.0, 0.0, 0.0)
+    rhs = (
+        tau[0] + friction[0] - c[0] - g[0],
+        tau[1] + friction[1] - c[1] - g[1],
+        tau[2] + friction[2] - c[2] - g[2],
+    )
+    return False, det, _solve3(M, rhs)
+
+
+# ------------------------------------------------------------------ batches
+def rotations(theta: FloatArray, reference: FloatArray, k: Constants, R: FloatArray) -> Any:
+    """Warm-started rotations of rows (N, 3) from ``reference`` (N, 3, 3) into ``R``
+    (N, 3, 3); returns the settled flags (N,) (False: solve by forward kinematics)."""
+    n = theta.shape[0]
+    ok = np.zeros(n, dtype=np.bool_)
+    for row in range(n):
+        done, rotation = _home_rotation(_vec_of(theta[row]), _mat_of(reference[row]), k)
+        ok[row] = done
+        _put_mat(R[row], rotation)
+    return ok
+
+
+def terms(
+    theta: FloatArray,
+    rate: FloatArray,
+    R: FloatArray,
+    k: Constants,
+    bias: bool,
+    M: FloatArray,
+    c: FloatArray,
+    g: FloatArray,
+    friction: FloatArray,
+    J: FloatArray,
+    S: FloatArray,
+    det: FloatArray,
+) -> Any:
+    """M, c (zero without ``bias``), g, friction, J, S and det A of rows into the given
+    arrays; returns the singular flags (N,) (their rows left unwritten)."""
+    n = theta.shape[0]
+    singular = np.zeros(n, dtype=np.bool_)
+    for row in range(n):
+        out = _row_terms(_vec_of(theta[row]), _vec_of(rate[row]), _mat_of(R[row]), k, bias)
+        singular[row] = out[0]
+        det[row] = out[1]
+        if out[0]:
+            continue
+        _put_mat(M[row], out[2])
+        for j in range(3):
+            c[row, j] = out[3][j]
+            g[row, j] = out[4][j]
+            friction[row, j] = out[5][j]
+        _put_mat(J[row], out[6])
+        Psi, Chi = out[7], out[8]
+        for i in range(3):
+            for j in range(3):
+                S[row, 3 * i, j] = 1.0 if i == j else 0.0
+                S[row, 3 * i + 1, j] = Psi[i][j]
+                S[row, 3 * i + 2, j] = Chi[i][j]
+    return singular
+
+
+def accelerations(
+    theta: FloatArray,
+    rate: FloatArray,
+    tau: FloatArray,
+    R: FloatArray,
+    k: Constants,
+    out: FloatArray,
+    det: FloatArray,
+) -> Any:
+    """theta_ddot of rows into ``out`` (N, 3), det A into ``det``; returns the singular
+    flags (N,)."""
+    n = theta.shape[0]
+    singular = np.zeros(n, dtype=np.bool_)
+    for row in range(n):
+        bad, d, acc = _row_acceleration(
+            _vec_of(theta[row]), _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), k
+        )
+        singular[row] = bad
+        det[row] = d
+        out[row, 0], out[row, 1], out[row, 2] = acc
+    return singular
+
+
+def _row_step(theta: Vec, rate: Vec, tau: Vec, R: Mat, h: float, rk4: bool, k: Constants) -> Any:
+    """One time step of one robot from a settled rotation R: (status, theta', rate',
+    theta_ddot)."""
+    zero = (0.0, 0.0, 0.0)
+    bad, _, a1 = _row_acceleration(theta, rate, tau, R, k)
+    if bad:
+        return STATUS_SINGULAR, zero, zero, zero
+    if not rk4:
+        r = (rate[0] + h * a1[0], rate[1] + h * a1[1], rate[2] + h * a1[2])
+        t = (theta[0] + h * r[0], theta[1] + h * r[1], theta[2] + h * r[2])
+        return STATUS_OK, t, r, a1
+    half = 0.5 * h
+    t2 = (theta[0] + half * rate[0], theta[1] + half * rate[1], theta[2] + half * rate[2])
+    r2 = (rate[0] + half * a1[0], rate[1] + half * a1[1], rate[2] + half * a1[2])
+    ok, R2 = _home_rotation(t2, R, k)
+    if not ok:
+        return STATUS_ROTATION, zero, zero, zero
+    bad, _, a2 = _row_acceleration(t2, r2, tau, R2, k)
+    if bad:
+        return STATUS_SINGULAR, zero, zero, zero
+    t3 = (theta[0] + half * r2[0], theta[1] + half * r2[1], theta[2] + half * r2[2])
+    r3 = (rate[0] + half * a2[0], rate[1] + half * a2[1], rate[2] + half * a2[2])
+    ok, R3 = _home_rotation(t3, R, k)
+    if not ok:
+        return STATUS_ROTATION, zero, zero, zero
+    bad, _, a3 = _row_acceleration(t3, r3, tau, R3, k)
+    if bad:
+        return STATUS_SINGULAR, zero, zero, zero
+    t4 = (theta[0] + h * r3[0], theta[1] + h * r3[1], theta[2] + h * r3[2])
+    r4 = (rate[0] + h * a3[0], rate[1] + h * a3[1], rate[2] + h * a3[2])
+    ok, R4 = _home_rotation(t4, R, k)
+    if not ok:
+        return STATUS_ROTATION, zero, zero, zero
+    bad, _, a4 = _row_acceleration(t4, r4, tau, R4, k)
+    if bad:
+        return STATUS_SINGULAR, zero, zero, zero
+    sixth = h / 6.0
+    t = (
+        theta[0] + sixth * (rate[0] + 2.0 * (r2[0] + r3[0]) + r4[0]),
+        theta[1] + sixth * (rate[1] + 2.0 * (r2[1] + r3[1]) + r4[1]),
+        theta[2] + sixth * (rate[2] + 2.0 * (r2[2] + r3[2]) + r4[2]),
+    )
+    r = (
+        rate[0] + sixth * (a1[0] + 2.0 * (a2[0] + a3[0]) + a4[0]),
+        rate[1] + sixth * (a1[1] + 2.0 * (a2[1] + a3[1]) + a4[1]),
+        rate[2] + sixth * (a1[2] + 2.0 * (a2[2] + a3[2]) + a4[2]),
+    )
+    return STATUS_OK, t, r, a1
+
+
+def step(
+    theta: FloatArray,
+    rate: FloatArray,
+    tau: FloatArray,
+    reference: FloatArray,
+    h: float,
+    rk4: bool,
+    k: Constants,
+    theta_out: FloatArray,
+    rate_out: FloatArray,
+    acc_out: FloatArray,
+    R_out: FloatArray,
+) -> int:
+    """One time step of rows (N, 3) warm-started from ``reference`` (N, 3, 3), into the
+    output arrays (R_out: the rotations at the start). Stops at the first row that is
+    not settled (a failed warm-started rotation at any stage, or a singularity) and
+    returns its status (:data:`STATUS_ROTATION` or :data:`STATUS_SINGULAR`): the
+    caller takes the Python path for the whole batch. :data:`STATUS_OK` otherwise."""
+    n = theta.shape[0]
+    for row in range(n):
+        th = _vec_of(theta[row])
+        ok, R = _home_rotation(th, _mat_of(reference[row]), k)
+        if not ok:
+            return STATUS_ROTATION
+        status, t, r, acc = _row_step(th, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, k)
+        if status != STATUS_OK:
+            return int(status)
+        _put_mat(R_out[row], R)
+        for j in range(3):
+            theta_out[row, j] = t[j]
+            rate_out[row, j] = r[j]
+            acc_out[row, j] = acc[j]
+    return STATUS_OK
+
+
+#: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
+KERNELS = (
+    _dot,
+    _cross,
+    _rotate,
+    _mat_vec,
+    _mat_t_vec,
+    _mat_mul,
+    _mat_t_mul,
+    _vec_of,
+    _mat_of,
+    _put_mat,
+    _solve3,
+    _unit,
+    _scale,
+    _leg_row,
+    _leg_matrix,
+    _rate_rhs,
+    _proximal,
+    _cofactors,
+    _newton,
+    _home_rotation,
+    _row_terms,
+    _row_acceleration,
+    rotations,
+    terms,
+    accelerations,
+    _row_step,
+    step,
+)
