@@ -226,7 +226,13 @@ def test_quick_planning_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     data = json.loads(out.read_text())
     assert data["benchmark"] == "planning" and data["config"]["quick"] is True
     assert {"numpy", "ompl", "toppra"} <= set(data["machine"]["packages"])
-    assert set(data["results"]) == {"safe_set", "cover", "plan", "plan_cached", "duration"}
+    assert set(data["results"]) == {
+        "safe_set", "cover", "plan", "plan_cached", "duration", "eye"
+    }  # fmt: skip
+    eye = data["results"]["eye"]
+    assert eye["n"] == eye["samples"] == bench_planning.QUICK.eye_pairs
+    assert eye["planned"] + eye["failures"] == eye["n"]
+    assert eye["certified"] == eye["planned"] and eye["boxes"] >= 1
     cover = data["results"]["cover"]
     assert cover["fill_level"] == 0 and cover["file_bytes"] > 0 and cover["load_s"] > 0
     assert data["results"]["plan_cached"]["n"] == data["results"]["plan"]["n"]

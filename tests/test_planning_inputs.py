@@ -114,6 +114,40 @@ def test_the_lipschitz_bounds_hold_at_random_nearby_states(eye: spm.SPMDesign) -
     assert checked == 20
 
 
+def test_the_bounds_exceed_every_rate_of_a_fresh_large_draw(eye: spm.SPMDesign) -> None:
+    """The measured bounds (before the safety factor) against the steepest of 30,000
+    fresh random pairs of the same box (another seed): the search about the steepest
+    pairs must find at least as steep places as a draw ten times as large."""
+    from spm_pin.planning.input_space import LIPSCHITZ_FACTOR
+
+    box = np.radians([-90.0] * 3), np.radians([90.0] * 3)
+    safe = InputSafeSet(eye, low=box[0], high=box[1], seed=0)
+    rng = np.random.default_rng(99)
+    a = rng.uniform(*box, size=(30_000, 3))
+    direction = rng.normal(size=a.shape)
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    joint, singularity, dexterity = safe._rates(a, direction)
+    assert np.isfinite(joint).sum() > 3_000  # pairs that count
+    lip = safe.lipschitz
+    assert lip.joint / LIPSCHITZ_FACTOR >= joint.max()
+    assert lip.singularity / LIPSCHITZ_FACTOR >= singularity.max()
+    assert lip.dexterity / LIPSCHITZ_FACTOR >= dexterity.max()
+
+
+def test_plans_near_each_other_share_one_safe_set(eye: spm.SPMDesign) -> None:
+    """The default planning box is rounded out to the lattice: two plans in the same
+    region use one safe set (built once), whose corners are lattice multiples."""
+    from spm_pin.planning.input_space import BOX_LATTICE_DEG
+
+    _, first = plan_inputs(np.radians(EYE_START_DEG), np.radians(EYE_GOAL_DEG), eye)
+    _, second = plan_inputs(np.radians([5.0, 10.0, 0.0]), np.radians([15.0, 20.0, 5.0]), eye)
+    assert first["safe"] is second["safe"]
+    corners = np.degrees(np.concatenate([first["safe"].low, first["safe"].high]))
+    assert np.allclose(corners / BOX_LATTICE_DEG, np.round(corners / BOX_LATTICE_DEG))
+    assert np.all(first["safe"].low <= np.radians(-60.0))
+    assert np.all(first["safe"].high >= np.radians(30.0 + 60.0))
+
+
 def test_bad_requests_are_refused_with_the_reason(eye: spm.SPMDesign) -> None:
     start = np.radians(EYE_START_DEG)
     with pytest.raises(InputError, match="cannot spin endlessly"):

@@ -13,7 +13,7 @@ plane does, in input-space degrees (Euclidean):
 * the singularity margin and the dexterity change by at most ``Ls`` and ``Ld`` per
   degree.
 
-``Lq``, ``Ls`` and ``Ld`` are measured at random pairs of inputs 0.5 degree apart
+``Lq``, ``Ls`` and ``Ld`` are measured at 3,000 random pairs of inputs 0.5 degree apart
 in the planning box (both ends reachable, at least half the singularity threshold)
 and multiplied by :data:`~spm_pin.planning.safe_set.LIPSCHITZ_FACTOR`: an estimate
 from samples, as the gap plane's is from its grid. Samples of a path at most
@@ -22,13 +22,18 @@ bound), cover the way between them when their radii add up to their distance.
 
 :func:`plan_inputs` searches with OMPL's RRTConnect (``pip install ompl``, in the
 ``planning`` extra), shortens the path with OMPL's simplifier, and returns it only
-once the certificate holds.
+once the certificate holds. Its default planning box (the start and goal's box
+widened by :data:`DEFAULT_HALF_WIDTH_DEG`) is rounded out to multiples of
+:data:`BOX_LATTICE_DEG`, so that plans near each other share one safe set, built once
+in a process (:func:`input_safe_set_of`: the robot model and the measured bounds,
+a second or so), as the gap plane's :func:`~spm_pin.planning.safe_set.safe_set_of` is.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -50,14 +55,30 @@ from .safe_set import (
     moving_radius,
 )
 
-__all__ = ["DEFAULT_HALF_WIDTH_DEG", "InputSafeSet", "plan_inputs"]
+__all__ = [
+    "BOX_LATTICE_DEG",
+    "DEFAULT_HALF_WIDTH_DEG",
+    "InputSafeSet",
+    "input_safe_set_of",
+    "plan_inputs",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
 #: Half width of the default planning box about the start and goal [deg].
 DEFAULT_HALF_WIDTH_DEG = 60.0
-#: Random pairs measured for the Lipschitz bounds, and their distance [deg].
+#: The default planning box's corners are rounded out to multiples of this [deg].
+BOX_LATTICE_DEG = 120.0
+#: Random pairs that count for the Lipschitz bounds (both ends reachable and not near
+#: a singularity), their distance [deg], and the most batches of that many drawn.
 LIPSCHITZ_PAIRS = 3000
+LIPSCHITZ_BATCHES = 20
+#: The search about the steepest pairs: how many, perturbed pairs per round, rounds,
+#: and the first round's spread [deg] (halved each round).
+REFINE_TOP = 40
+REFINE_TRIES = 16
+REFINE_ROUNDS = 4
+REFINE_SPREAD_DEG = 4.0
 LIPSCHITZ_STEP_DEG = 0.5
 #: Seconds OMPL may search, and attempts before giving up.
 SEARCH_SECONDS = 5.0
@@ -122,28 +143,85 @@ class InputSafeSet:
     def _kinematics(self, theta: FloatArray) -> tuple[Any, Any, Any, FloatArray]:
         return kinematic_checks(self.robot, theta)
 
-    def _measure(self, rng: np.random.Generator) -> Lipschitz:
-        """Lipschitz bounds from random pairs of inputs LIPSCHITZ_STEP_DEG apart."""
-        a = rng.uniform(self.low, self.high, size=(LIPSCHITZ_PAIRS, 3))
-        direction = rng.normal(size=(LIPSCHITZ_PAIRS, 3))
-        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    def _rates(
+        self, a: FloatArray, direction: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Per pair (a, a + LIPSCHITZ_STEP_DEG along ``direction``): the rates of the
+        chain's joint angles, the singularity margin and the dexterity per degree,
+        -inf where a pair does not count (an end unreachable or within half the
+        singularity threshold)."""
         b = a + math.radians(LIPSCHITZ_STEP_DEG) * direction
         ra, sa, da, qa = self._kinematics(a)
         rb, sb, db, qb = self._kinematics(b)
         half = 0.5 * self.settings.min_singularity_margin
         both = ra & rb & (sa >= half) & (sb >= half)
-        if not np.any(both):
+        rates = np.full((3, a.shape[0]), -np.inf)
+        if np.any(both):
+            rates[0, both] = chain_change(qa[both], qb[both])
+            rates[1, both] = np.abs(sb - sa)[both]
+            rates[2, both] = np.abs(db - da)[both]
+        rates /= LIPSCHITZ_STEP_DEG
+        return rates[0], rates[1], rates[2]
+
+    def _measure(self, rng: np.random.Generator) -> Lipschitz:
+        """Lipschitz bounds from random pairs of inputs LIPSCHITZ_STEP_DEG apart.
+
+        Drawn in batches until LIPSCHITZ_PAIRS pairs count (both ends reachable, at
+        least half the singularity threshold; up to LIPSCHITZ_BATCHES batches), then
+        each rate's steepest pairs are searched about (REFINE_ROUNDS rounds of
+        REFINE_TRIES perturbed pairs about each of the REFINE_TOP steepest), so that
+        the estimate finds the steep places of a large box, not only what the first
+        draw hit."""
+        starts, directions, rates = [], [], []
+        counted = 0
+        for _ in range(LIPSCHITZ_BATCHES):
+            a = rng.uniform(self.low, self.high, size=(LIPSCHITZ_PAIRS, 3))
+            direction = rng.normal(size=(LIPSCHITZ_PAIRS, 3))
+            direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+            found = np.stack(self._rates(a, direction))
+            starts.append(a)
+            directions.append(direction)
+            rates.append(found)
+            counted += int(np.count_nonzero(np.isfinite(found[0])))
+            if counted >= LIPSCHITZ_PAIRS:
+                break
+        if not counted:
             raise PlanningError(
                 f"no reachable inputs in the planning box of {self.design.name!r}: "
                 "nothing to plan in"
             )
-        step = LIPSCHITZ_STEP_DEG
-        joint = LIPSCHITZ_FACTOR * float(chain_change(qa[both], qb[both]).max()) / step
+        a, direction = np.concatenate(starts), np.concatenate(directions)
+        steepest = np.concatenate(rates, axis=1).max(axis=1)
+        for k in range(3):
+            found = np.concatenate(rates, axis=1)[k]
+            top = np.argsort(found)[::-1][:REFINE_TOP]
+            top = top[np.isfinite(found[top])]
+            centre, heading, best = a[top], direction[top], found[top]
+            spread = math.radians(REFINE_SPREAD_DEG)
+            for _ in range(REFINE_ROUNDS):
+                tries = np.repeat(centre, REFINE_TRIES, axis=0)
+                tries = tries + rng.normal(scale=spread, size=tries.shape)
+                tries = np.clip(tries, self.low, self.high)
+                turned = np.repeat(heading, REFINE_TRIES, axis=0) + rng.normal(
+                    scale=0.3, size=tries.shape
+                )
+                turned /= np.linalg.norm(turned, axis=1, keepdims=True)
+                value = self._rates(tries, turned)[k].reshape(-1, REFINE_TRIES)
+                pick = np.argmax(value, axis=1)
+                better = value[np.arange(len(pick)), pick] > best
+                rows = np.flatnonzero(better)
+                centre[rows] = tries.reshape(-1, REFINE_TRIES, 3)[rows, pick[rows]]
+                heading[rows] = turned.reshape(-1, REFINE_TRIES, 3)[rows, pick[rows]]
+                best[rows] = value[rows, pick[rows]]
+                spread *= 0.5
+            if best.size:
+                steepest[k] = max(steepest[k], float(best.max()))
+        joint = LIPSCHITZ_FACTOR * float(steepest[0])
         r_max = moving_radius(self.checker)
         return Lipschitz(
             clearance=2.0 * r_max * joint,
-            singularity=LIPSCHITZ_FACTOR * float(np.max(np.abs(sb - sa)[both])) / step,
-            dexterity=LIPSCHITZ_FACTOR * float(np.max(np.abs(db - da)[both])) / step,
+            singularity=LIPSCHITZ_FACTOR * float(steepest[1]),
+            dexterity=LIPSCHITZ_FACTOR * float(steepest[2]),
             joint=joint,
             r_max=r_max,
         )
@@ -184,6 +262,46 @@ def _length_deg(theta: FloatArray) -> float:
     return float(np.sum(InputSafeSet.steps(theta)))
 
 
+@lru_cache(maxsize=4)
+def _robot_of(design: SPMDesign) -> SPMRobot:
+    from ..collision import build_robot
+
+    return build_robot(design)
+
+
+@lru_cache(maxsize=16)
+def input_safe_set_of(
+    design: SPMDesign,
+    settings: PlanSettings,
+    low_deg: tuple[float, float, float],
+    high_deg: tuple[float, float, float],
+    seed: int = 0,
+) -> InputSafeSet:
+    """The safe set of ``design`` in the box [low_deg, high_deg] [deg], built once per
+    design, settings, box and seed in a process and shared by later calls (the robot
+    model is shared between boxes)."""
+    return InputSafeSet(
+        settings=settings,
+        low=np.radians(low_deg),
+        high=np.radians(high_deg),
+        robot=_robot_of(design),
+        seed=seed,
+    )
+
+
+def _default_box(
+    a: FloatArray, b: FloatArray
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The start and goal's box widened by DEFAULT_HALF_WIDTH_DEG, its corners rounded
+    out to multiples of BOX_LATTICE_DEG [deg]."""
+    lattice = BOX_LATTICE_DEG
+    low = np.floor((np.degrees(np.minimum(a, b)) - DEFAULT_HALF_WIDTH_DEG) / lattice) * lattice
+    high = np.ceil((np.degrees(np.maximum(a, b)) + DEFAULT_HALF_WIDTH_DEG) / lattice) * lattice
+    lows = (float(low[0]), float(low[1]), float(low[2]))
+    highs = (float(high[0]), float(high[1]), float(high[2]))
+    return lows, highs
+
+
 def plan_inputs(
     theta0: npt.ArrayLike,
     theta1: npt.ArrayLike,
@@ -204,7 +322,9 @@ def plan_inputs(
         theta1: Goal input angles [rad], (3,).
         design: The SPM (default: the Agile Eye); ignored when ``safe`` is given.
         settings: The thresholds (default :class:`PlanSettings`).
-        safe: The safe set to plan in (default: built for the start and goal).
+        safe: The safe set to plan in (default: :func:`input_safe_set_of` the start
+            and goal's box widened by :data:`DEFAULT_HALF_WIDTH_DEG` and rounded out
+            to multiples of :data:`BOX_LATTICE_DEG`).
         seed: OMPL's random seed (set once per process, at its first search).
 
     Returns:
@@ -221,13 +341,9 @@ def plan_inputs(
     a = _angles(theta0, "start")
     b = _angles(theta1, "goal")
     if safe is None:
-        width = math.radians(DEFAULT_HALF_WIDTH_DEG)
-        safe = InputSafeSet(
-            design,
-            settings,
-            low=np.minimum(a, b) - width,
-            high=np.maximum(a, b) + width,
-            seed=seed,
+        low_deg, high_deg = _default_box(a, b)
+        safe = input_safe_set_of(
+            design or SPMDesign.agile_eye(), settings or PlanSettings(), low_deg, high_deg, seed
         )
     for name, theta in (("start", a), ("goal", b)):
         evaluation = safe.evaluate(theta[None])
