@@ -613,9 +613,12 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
 
 
 def figures_optimize(data: Mapping[str, Any]) -> list[Figure]:
-    """One score of the safe orientation workspace; the peer is the workspace map."""
+    """One score of the safe orientation workspace (the peer: the workspace map); a
+    study's evaluations per second in process and on a Dask LocalCluster (the peer: a
+    ProcessPoolExecutor); the time to a Pareto front through ``run_study`` (the peer:
+    the same study driven with Optuna's ask/tell on a ProcessPoolExecutor)."""
     results, peer = data["results"], data["peer"]
-    return [
+    rows = [
         timed(
             "score",
             "optimize: safe workspace score at 2 deg (prototype)",
@@ -629,6 +632,116 @@ def figures_optimize(data: Mapping[str, Any]) -> list[Figure]:
             "score_new_design",
             "optimize: safe workspace score of a new design (collision model built)",
             results["score_new_design"],
+        ),
+    ]
+    if "engines" in results:  # runs from before the engines' rows have none
+        rows += _optimize_engines(results["engines"])
+    if "pareto" in results:
+        rows += _optimize_pareto(results["pareto"])
+    return rows
+
+
+def _optimize_engines(engines: Mapping[str, Any]) -> list[Figure]:
+    """Evaluations per second of a study's designs: in process, on Dask's LocalCluster
+    beside the ProcessPoolExecutor (that one alone when Dask was skipped)."""
+    count = engines["designs"]
+    single, pool = engines["in_process"], engines["process_pool"]
+    dask = engines.get("dask_local_cluster", {"skipped": "not in this run"})
+    pool_name = f"ProcessPoolExecutor({pool['workers']})"
+    rows = [
+        valued(
+            "engines_in_process",
+            f"optimize: study evaluations per second, in process, one after the other "
+            f"({count} designs)",
+            single["per_second"],
+            unit="1/s",
+            higher_is_better=True,
+        )
+    ]
+    if "skipped" in dask:
+        rows += [
+            valued(
+                "engines_process_pool",
+                f"optimize: study evaluations per second, peer {pool_name} alone "
+                f"(Dask skipped: {dask['skipped']})",
+                pool["per_second"],
+                unit="1/s",
+                higher_is_better=True,
+            ),
+            valued(
+                "engines_process_pool_efficiency",
+                f"optimize: scaling efficiency of the peer {pool_name}, "
+                "rate / (workers x in-process rate)",
+                pool["efficiency"],
+                unit="fraction",
+                higher_is_better=True,
+            ),
+        ]
+    else:
+        workers = dask["workers"]
+        rows += [
+            valued(
+                "engines_dask",
+                f"optimize: study evaluations per second, Dask LocalCluster of {workers} "
+                "processes (the study's engine)",
+                dask["per_second"],
+                unit="1/s",
+                peer_name=pool_name,
+                peer=pool["per_second"],
+                higher_is_better=True,
+            ),
+            valued(
+                "engines_dask_efficiency",
+                f"optimize: scaling efficiency on {workers} processes, "
+                "rate / (workers x in-process rate)",
+                dask["efficiency"],
+                unit="fraction",
+                peer_name=pool_name,
+                peer=pool["efficiency"],
+                higher_is_better=True,
+            ),
+        ]
+    rows.append(
+        valued(
+            "engines_equal_scores",
+            "optimize: every engine's scores equal to the in-process ones",
+            1.0 if engines["equal_scores"] else 0.0,
+            unit="fraction",
+            higher_is_better=True,
+        )
+    )
+    return rows
+
+
+def _optimize_pareto(pareto: Mapping[str, Any]) -> list[Figure]:
+    """The time to a Pareto front, run_study beside the ask/tell peer; the fronts'
+    sizes (no ratio: a larger front is not a faster engine)."""
+    ours, pool = pareto["ours"], pareto["process_pool"]
+    if "skipped" in ours:
+        return []
+    available = "skipped" not in pool
+    peer_name = f"Optuna ask/tell + ProcessPoolExecutor({pareto['workers']})"
+    count, objectives = pareto["designs"], " and ".join(pareto["objectives"])
+    return [
+        timed(
+            "pareto",
+            f"optimize: time to a Pareto front of {count:,} designs ({objectives}; "
+            f"run_study on a Dask LocalCluster of {pareto['workers']} processes, "
+            "start-up included)",
+            ours,
+            peer_name=peer_name if available else None,
+            peer=pool if available else None,
+            ratio=pareto.get("speed_ratio_ours_vs_peer"),
+        ),
+        Figure(
+            "pareto_front",
+            f"optimize: designs on that Pareto front (feasible, non-dominated, of {count:,})",
+            "value",
+            (float(ours["pareto"]),),
+            unit="count",
+            peer_name=peer_name if available else None,
+            peer=(float(pool["pareto"]),) if available else None,
+            higher_is_better=True,
         ),
     ]
 
@@ -769,7 +882,10 @@ BENCHMARKS: dict[str, Benchmark] = {
         Benchmark(
             "optimize",
             "spm_pin.workspace.workspace_map at the same grid and thresholds "
-            "(the full map, without the clearance field)",
+            "(the full map, without the clearance field); for a study's evaluations, a "
+            "plain concurrent.futures.ProcessPoolExecutor of as many processes; for the "
+            "time to a Pareto front, the same study (Optuna NSGA-II, same population and "
+            "seed) driven with Optuna's ask/tell on that pool",
             figures_optimize,
         ),
         Benchmark(

@@ -31,6 +31,18 @@ defaults of ``spm workspace``):
    the clock starts; the start-up is reported apart); the scaling efficiency is
    rate / (workers x in-process rate). Every engine's scores must be equal
    (``equal_scores``). Skipped without Dask distributed.
+6. ``pareto``: the time to a Pareto front of a two-objective study of P designs
+   (500; ``--quick``: 12) of the engines section's space, objectives and settings,
+   wall time from the call to its answer, start-up included: through the library's
+   own :func:`spm_pin.optimize.run_study` on a Dask ``LocalCluster`` of 2 processes
+   (``workers=2``), and the peer: the same study (Optuna's NSGA-II, the same
+   population and seed, the same evaluation ``_evaluate_trial``) driven through
+   Optuna's ask/tell interface on a plain ``ProcessPoolExecutor(2)`` (spawn), up to
+   2 trials in flight per worker. Each reports its wall time, designs per second,
+   the size of its Pareto front (feasible, non-dominated: the study's definition)
+   and its failed and infeasible trials; the start-up of a cluster (or pool) alone is
+   measured apart, not subtracted. Skipped without Optuna (the peer too) or Dask
+   distributed (ours).
 """
 
 from __future__ import annotations
@@ -38,10 +50,12 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import itertools
+import logging
 import multiprocessing
 import os
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -54,8 +68,19 @@ import numpy as np  # noqa: E402
 
 import spm_pin as spm  # noqa: E402
 from spm_pin.optimize import DesignSpace, Variable, safe_workspace_score  # noqa: E402
-from spm_pin.optimize._engines import dask_client, evaluate_on_cluster  # noqa: E402
-from spm_pin.optimize.study import StudySettings, _evaluate_trial  # noqa: E402
+from spm_pin.optimize._engines import (  # noqa: E402
+    IN_FLIGHT_PER_THREAD,
+    dask_client,
+    evaluate_on_cluster,
+)
+from spm_pin.optimize.study import (  # noqa: E402
+    OBJECTIVES,
+    StudySettings,
+    TrialRecord,
+    _evaluate_trial,
+    _pareto,
+    run_study,
+)
 from spm_pin.workspace import WorkspaceMap, WorkspaceSettings, workspace_map  # noqa: E402
 
 from ._common import (  # noqa: E402
@@ -86,10 +111,14 @@ class Sizes:
     new_designs: int
     maps: int
     engine_designs: int
+    pareto_designs: int
 
 
-FULL = Sizes(scores=15, new_designs=5, maps=3, engine_designs=40)
-QUICK = Sizes(scores=3, new_designs=2, maps=1, engine_designs=6)
+# One evaluation of the engines' space costs about 0.4 s on one core (2026, CI-class
+# machine), so 500 designs on 2 workers take about 100-150 s per engine of the
+# Pareto section (quick: 12 designs, a few seconds each).
+FULL = Sizes(scores=15, new_designs=5, maps=3, engine_designs=40, pareto_designs=500)
+QUICK = Sizes(scores=3, new_designs=2, maps=1, engine_designs=6, pareto_designs=12)
 
 #: The engines section: its design space, objectives, settings and worker processes.
 ENGINE_SPACE = DesignSpace(
@@ -98,6 +127,9 @@ ENGINE_SPACE = DesignSpace(
 ENGINE_OBJECTIVES = ("tilt", "peak_torque")
 ENGINE_SETTINGS = StudySettings()
 ENGINE_WORKERS = 2
+#: The Pareto section's study: the seed and NSGA-II population of ``run_study``.
+PARETO_SEED = 0
+PARETO_POPULATION = 20
 
 
 def _engine_tasks(count: int) -> tuple[tuple[Any, ...], list[tuple[Any, ...]]]:
@@ -190,6 +222,203 @@ def run_engines(count: int) -> dict[str, Any]:
     return out
 
 
+def _load_average() -> float | None:
+    return os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+
+
+def _pareto_entry(
+    method: str, seconds: float, startup: float, records: Sequence[TrialRecord]
+) -> dict[str, Any]:
+    """One engine's figures of the Pareto section from its trials (records)."""
+    chosen = tuple(OBJECTIVES[name] for name in ENGINE_OBJECTIVES)
+    count = len(records)
+    return {
+        "method": method,
+        "seconds": seconds,
+        "values_s": [seconds],  # one sample: the figures' timing row reads it
+        "items": count,
+        "per_second": count / seconds,
+        "startup_s": startup,
+        "designs": count,
+        "pareto": len(_pareto(tuple(records), chosen)),
+        "failed": sum(r.state == "FAIL" for r in records),
+        "infeasible": sum(r.state == "COMPLETE" and not r.feasible for r in records),
+    }
+
+
+def _pool_startup(workers: int) -> float:
+    """Seconds until a spawned ``ProcessPoolExecutor(workers)`` has run a short task
+    on each of its processes (the task's own 0.1 s taken off)."""
+    start = time.perf_counter()
+    with concurrent.futures.ProcessPoolExecutor(
+        workers, mp_context=multiprocessing.get_context("spawn")
+    ) as pool:
+        for future in [pool.submit(time.sleep, 0.1) for _ in range(workers)]:
+            future.result()
+        return time.perf_counter() - start - 0.1
+
+
+def _cluster_startup(workers: int) -> float:
+    """Seconds until the study's ``LocalCluster`` of ``workers`` processes has them all
+    connected (then it is closed)."""
+    start = time.perf_counter()
+    with dask_client(workers, None) as client:
+        client.wait_for_workers(workers)
+        return time.perf_counter() - start
+
+
+def _peer_study(count: int, workers: int) -> list[TrialRecord]:
+    """The peer of ``run_study``: the same study driven by hand with Optuna's ask/tell
+    on a plain spawned ``ProcessPoolExecutor(workers)``, up to
+    :data:`~spm_pin.optimize._engines.IN_FLIGHT_PER_THREAD` trials in flight per
+    worker, each told as it completes. Its sampler is Optuna's NSGA-II with
+    ``run_study``'s population and seed (one sampler for the study, as Optuna's
+    documentation writes it; ``run_study`` seeds one per trial from (seed, number)).
+    Constraints go to Optuna as ``run_study`` gives them: per trial on Optuna >= 5,
+    through ``constraints_func`` before."""
+    import optuna
+    from optuna.trial import TrialState
+
+    native = hasattr(optuna.trial.Trial, "set_constraint")
+    names = ENGINE_OBJECTIVES
+
+    def constraints_of(trial: Any) -> Sequence[float]:
+        values: Sequence[float] = trial.user_attrs.get("constraints", [])
+        return values
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        sampler = optuna.samplers.NSGAIISampler(
+            population_size=PARETO_POPULATION,
+            seed=PARETO_SEED,
+            constraints_func=None if native else constraints_of,
+        )
+    directions: Any = [OBJECTIVES[name].direction for name in names]
+    study = optuna.create_study(directions=directions, sampler=sampler)
+    distributions: dict[str, Any] = {
+        v.name: optuna.distributions.FloatDistribution(float(v.low), float(v.high))
+        for v in ENGINE_SPACE.variables
+    }
+    records: list[TrialRecord] = []
+    in_flight: dict[concurrent.futures.Future[Any], Any] = {}
+    asked = 0
+    with concurrent.futures.ProcessPoolExecutor(
+        workers, mp_context=multiprocessing.get_context("spawn")
+    ) as pool:
+        while asked < count or in_flight:
+            while asked < count and len(in_flight) < IN_FLIGHT_PER_THREAD * workers:
+                trial = study.ask(distributions)
+                arguments = (ENGINE_SPACE, dict(trial.params), names, ENGINE_SETTINGS)
+                future = pool.submit(_evaluate_trial, *arguments, f"peer-{trial.number}")
+                in_flight[future] = trial
+                asked += 1
+            done, _ = concurrent.futures.wait(
+                in_flight, return_when=concurrent.futures.FIRST_COMPLETED
+            )
+            for future in done:
+                trial = in_flight.pop(future)
+                outcome = future.result()
+                values = {k: float(v) for k, v in trial.params.items()}
+                if outcome.scores is None:
+                    study.tell(trial, state=TrialState.FAIL)
+                    record = TrialRecord(trial.number, "FAIL", values, {}, {}, False, outcome.error)
+                else:
+                    if native:
+                        for key, limit in outcome.constraints.items():
+                            trial.set_constraint(key, limit)
+                    else:
+                        trial.set_user_attr("constraints", list(outcome.constraints.values()))
+                    study.tell(trial, list(outcome.scores))
+                    constraints = dict(outcome.constraints)
+                    record = TrialRecord(
+                        trial.number,
+                        "COMPLETE",
+                        values,
+                        dict(zip(names, outcome.scores, strict=True)),
+                        constraints,
+                        all(c <= 0.0 for c in constraints.values()),
+                        None,
+                    )
+                records.append(record)
+    return sorted(records, key=lambda r: r.number)
+
+
+def run_pareto(count: int) -> dict[str, Any]:
+    """The time to a Pareto front of ``count`` designs: ``run_study`` on a Dask
+    LocalCluster beside a ProcessPoolExecutor driven through Optuna's ask/tell (see
+    the module)."""
+    out: dict[str, Any] = {
+        "designs": count,
+        "objectives": list(ENGINE_OBJECTIVES),
+        "variables": [v.name for v in ENGINE_SPACE.variables],
+        "step_deg": ENGINE_SETTINGS.step_deg,
+        "constraints": list(ENGINE_SETTINGS.constraint_names()),
+        "sampler": f"optuna NSGAIISampler(population_size={PARETO_POPULATION}, seed={PARETO_SEED})",
+        "workers": ENGINE_WORKERS,
+        "in_flight_per_worker": IN_FLIGHT_PER_THREAD,
+        "cpus": os.cpu_count(),
+        "timing": "wall time of one run from the call to the answer, start-up included; "
+        "startup_s: the cluster (pool) alone, measured apart",
+    }
+    try:
+        import optuna
+    except ImportError:
+        out["ours"] = {"skipped": "optuna is not installed"}
+        out["process_pool"] = {"skipped": "optuna is not installed"}
+        return out
+    level = optuna.logging.get_verbosity()
+    optuna.logging.set_verbosity(logging.WARNING)  # no line per trial
+    try:
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            out["ours"] = {"skipped": "dask[distributed] is not installed"}
+        else:
+            startup = _cluster_startup(ENGINE_WORKERS)
+            out["ours"] = {"load_average_before": _load_average()}
+            start = time.perf_counter()
+            result = run_study(
+                ENGINE_SPACE,
+                ENGINE_OBJECTIVES,
+                count,
+                settings=ENGINE_SETTINGS,
+                seed=PARETO_SEED,
+                population_size=PARETO_POPULATION,
+                workers=ENGINE_WORKERS,
+            )
+            seconds = time.perf_counter() - start
+            out["ours"].update(
+                _pareto_entry(
+                    "spm_pin.optimize.run_study(workers=2): Dask LocalCluster of 2 processes, "
+                    "1 thread each",
+                    seconds,
+                    startup,
+                    result.trials,
+                )
+            )
+            out["ours"]["pareto_of_study"] = len(result.pareto)  # the study's own answer
+        startup = _pool_startup(ENGINE_WORKERS)
+        load = _load_average()
+        start = time.perf_counter()
+        records = _peer_study(count, ENGINE_WORKERS)
+        seconds = time.perf_counter() - start
+        out["process_pool"] = {
+            "load_average_before": load,
+            **_pareto_entry(
+                "optuna ask/tell + concurrent.futures.ProcessPoolExecutor(2, spawn), "
+                f"{IN_FLIGHT_PER_THREAD} trials in flight per worker",
+                seconds,
+                startup,
+                records,
+            ),
+        }
+    finally:
+        optuna.logging.set_verbosity(level)
+    if "skipped" not in out["ours"]:
+        out["speed_ratio_ours_vs_peer"] = out["process_pool"]["seconds"] / out["ours"]["seconds"]
+    return out
+
+
 def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     """Run every section and return the JSON payload."""
     design = spm.SPMDesign.prototype()
@@ -238,6 +467,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
             results["score"]["median_s"], TARGET_SCORE_S, at_least=False, unit="s"
         )
     results["engines"] = run_engines(sizes.engine_designs)
+    results["pareto"] = run_pareto(sizes.pareto_designs)
     with_all_pass(targets)
     return {
         "benchmark": "optimize",
@@ -256,6 +486,41 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
         "peer_clearance": peers["peer_clearance"],
         "targets": targets,
     }
+
+
+def _pareto_table(pareto: dict[str, Any]) -> str:
+    """The Pareto section of the report."""
+    rows = []
+    for label, key in (
+        ("run_study, Dask LocalCluster", "ours"),
+        ("peer: ask/tell + ProcessPoolExecutor", "process_pool"),
+    ):
+        entry = pareto[key]
+        if "skipped" in entry:
+            rows.append([label, "skipped", "-", "-", "-", "-", "-"])
+            continue
+        rows.append(
+            [
+                label,
+                f"{entry['seconds']:.2f} s",
+                format_rate(entry["per_second"]),
+                str(entry["pareto"]),
+                str(entry["failed"]),
+                str(entry["infeasible"]),
+                format_seconds(entry["startup_s"]),
+            ]
+        )
+    ratio = pareto.get("speed_ratio_ours_vs_peer")
+    return (
+        f"Time to a Pareto front of {pareto['designs']} designs "
+        f"({', '.join(pareto['objectives'])}, {pareto['step_deg']:g} deg; "
+        f"{pareto['workers']} workers, {pareto['cpus']} CPUs; start-up included"
+        + ("" if ratio is None else f"; ours {ratio:.2f}x the peer's speed")
+        + ")\n"
+        + format_table(
+            ["engine", "time", "designs/s", "front", "failed", "infeasible", "start-up"], rows
+        )
+    )
 
 
 def report(payload: dict[str, Any]) -> str:
@@ -314,6 +579,7 @@ def report(payload: dict[str, Any]) -> str:
             ["engine", "workers", "time", "scores/s", "efficiency", "start-up"], engine_rows
         )
     )
+    pareto_table = _pareto_table(results["pareto"])
     lines = ["Targets"]
     for name, record in payload["targets"].items():
         if name == "all_pass":
@@ -329,7 +595,7 @@ def report(payload: dict[str, Any]) -> str:
         f"{figures['safe_tilt_every_direction_deg']:.2f} deg; "
         f"{payload['peer']['speed_ratio_ours_vs_peer']:.1f}x faster than the map"
     )
-    return "\n\n".join([head, table, notes, engine_table, "\n".join(lines)])
+    return "\n\n".join([head, table, notes, engine_table, pareto_table, "\n".join(lines)])
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -13,6 +13,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -195,7 +196,7 @@ def test_quick_optimize_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert "Targets" in capsys.readouterr().out
     data = json.loads(out.read_text())
     assert data["benchmark"] == "optimize" and data["config"]["quick"] is True
-    assert set(data["results"]) == {"score", "score_new_design", "engines"}
+    assert set(data["results"]) == {"score", "score_new_design", "engines", "pareto"}
     engines = data["results"]["engines"]
     assert engines["designs"] == bench_optimize.QUICK.engine_designs and engines["equal_scores"]
     for key in ("in_process", "process_pool", "dask_local_cluster"):
@@ -213,6 +214,54 @@ def test_quick_optimize_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert data["peer"]["speed_ratio_ours_vs_peer"] > 0
     assert set(data["targets"]) == {"equal_to_map", "all_pass"}  # time: full runs only
     assert data["targets"]["equal_to_map"]["pass"] is True
+    pareto = data["results"]["pareto"]
+    assert pareto["designs"] == bench_optimize.QUICK.pareto_designs
+    for key in ("ours", "process_pool"):  # Optuna and Dask distributed are optional
+        entry = pareto[key]
+        if "skipped" in entry:
+            continue
+        assert entry["designs"] == entry["items"] == pareto["designs"]
+        assert entry["seconds"] > 0 and entry["values_s"] == [entry["seconds"]]
+        assert entry["startup_s"] > 0
+        assert 0 <= entry["pareto"] <= entry["designs"] - entry["failed"] - entry["infeasible"]
+    if "skipped" not in pareto["ours"]:
+        assert pareto["ours"]["pareto"] == pareto["ours"]["pareto_of_study"]
+        assert pareto["speed_ratio_ours_vs_peer"] > 0
+    _check_optimize_figures(data)
+
+
+def _check_optimize_figures(data: dict[str, Any]) -> None:
+    """The optimize adapter's rows, from a run and from the same run without Dask."""
+    from benchmarks import _figures
+
+    benchmark = _figures.BENCHMARKS["optimize"]
+    analysis = _figures.analyse(benchmark, data)
+    assert analysis.adapter_error is None
+    keys = {f.key: f for f in analysis.figures}
+    engines, pareto = data["results"]["engines"], data["results"]["pareto"]
+    assert keys["engines_in_process"].ours == (engines["in_process"]["per_second"],)
+    assert keys["engines_equal_scores"].ours == (1.0,)
+    if "skipped" not in engines["dask_local_cluster"]:
+        dask = keys["engines_dask"]
+        assert dask.ours == (engines["dask_local_cluster"]["per_second"],)
+        assert dask.peer == (engines["process_pool"]["per_second"],)
+        assert keys["engines_dask_efficiency"].peer == (engines["process_pool"]["efficiency"],)
+    if "skipped" not in pareto["ours"]:
+        row = keys["pareto"]
+        assert row.ours == (pareto["ours"]["seconds"],)
+        assert row.peer == (pareto["process_pool"]["seconds"],)
+        assert row.ratio == pareto["speed_ratio_ours_vs_peer"]
+        assert keys["pareto_front"].ours == (float(pareto["ours"]["pareto"]),)
+    # Without Dask: the peer's rate stands alone, and no Pareto rows.
+    skipped = json.loads(json.dumps(data))
+    skipped["results"]["engines"]["dask_local_cluster"] = {"skipped": "no dask"}
+    skipped["results"]["pareto"]["ours"] = {"skipped": "no dask"}
+    skipped["results"]["pareto"].pop("speed_ratio_ours_vs_peer", None)
+    analysis = _figures.analyse(benchmark, skipped)
+    assert analysis.adapter_error is None
+    keys = {f.key: f for f in analysis.figures}
+    assert {"engines_process_pool", "engines_process_pool_efficiency"} <= set(keys)
+    assert not {"engines_dask", "pareto", "pareto_front"} & set(keys)
 
 
 def test_quick_planning_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
