@@ -805,6 +805,16 @@ def figures_planning(data: Mapping[str, Any]) -> list[Figure]:
                 unit="relative",
             )
         )
+    eye = results.get("eye")
+    if eye is not None:  # older runs have no Agile Eye section
+        rows.append(
+            timed(
+                "eye",
+                f"planning: Agile Eye, safe path in 3-D input space ({eye['n']:,} pairs)",
+                eye,
+                targets=("eye_median_s",),
+            )
+        )
     return rows
 
 
