@@ -271,3 +271,41 @@ def test_spm_optimize_ctrl_c_keeps_the_study_and_says_so(tmp_path: Path) -> None
     assert resumed.returncode == 0, resumed.stderr
     record = json.loads(resumed.stdout)
     assert record["trials"] == done + 2 and record["new_trials"] == 2
+
+
+def test_a_general_design_is_optimized_by_the_objectives_that_fit_it(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A base that is not coaxial (the Agile Eye): its base axes and leg azimuths stay,
+    its link angles vary; the study scores cone dexterity and the envelope as
+    `evaluate` does; the gap-plane objectives are refused with the reason."""
+    import dataclasses
+    import math
+
+    eye = spm.SPMDesign.agile_eye()
+    space = DesignSpace((Variable("alpha2_deg", 80.0, 100.0),), base=eye)
+    design = space.design({"alpha2_deg": 85.0}, name="eye-85")
+    assert design.base_axes == eye.base_axes and design.eta == eye.eta
+    assert design == dataclasses.replace(eye, alpha2=math.radians(85.0), name="eye-85")
+    assert space.values_of(design) == pytest.approx({"alpha2_deg": 85.0}, abs=1e-12)
+    settings = StudySettings(cone_deg=10.0, require_home_clearance=False)
+    result = run_study(space, ["cone_dexterity", "envelope"], 3, settings=settings, seed=1)
+    assert len(result.trials) == 3
+    for trial in result.trials:
+        assert trial.state == "COMPLETE", trial.error
+        direct = evaluate(space.design(trial.values), ["cone_dexterity", "envelope"], settings)
+        assert trial.scores == direct.scores
+    for objectives, extra in ((["tilt"], {}), (["envelope"], {"required_tilt_deg": 20.0})):
+        with pytest.raises(InputError, match="not coaxial"):
+            run_study(space, objectives, 1, settings=dataclasses.replace(settings, **extra), seed=0)
+    argv = [
+        "optimize", "--design", "agile_eye", "--vary", "alpha2=80:100", "--objectives",
+        "cone_dexterity", "--cone", "10", "--trials", "2", "--allow-home-collision", "--json",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["design"] == "agile_eye" and record["trials"] == 2
+    argv[argv.index("cone_dexterity")] = "tilt"
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "not coaxial" in err and err.count("\n") == 1

@@ -186,8 +186,10 @@ def add_parser(commands: Any) -> None:
     parser = commands.add_parser(
         "optimize",
         help="search a design space for the best designs (Optuna; resumable)",
-        description="A design study: vary link angles [deg] or sizes [m] of a coaxial "
-        "design within bounds, score each candidate by the objectives (NSGA-II for "
+        description="A design study: vary link angles [deg] or sizes [m] of a design "
+        "within bounds (a design that is not coaxial, such as agile_eye, takes "
+        "cone_dexterity, peak_torque and envelope), score each candidate by the "
+        "objectives (NSGA-II for "
         "several, TPE for one), under constraints, and print the Pareto front. With --out "
         "DIR, write there pareto.png, the best designs as design files best_1.toml ... "
         "(for --design FILE), designs.html and report.json (with the base design, "

@@ -97,8 +97,10 @@ class Variable:
 
 @dataclasses.dataclass(frozen=True)
 class DesignSpace:
-    """The coaxial designs a study may choose: the variables with their bounds, every
-    other parameter from ``base`` (default: the prototype's angles and sizes).
+    """The designs a study may choose: the variables with their bounds, every other
+    parameter from ``base`` (default: the prototype's angles and sizes). A base that
+    is not coaxial (the Agile Eye, a design file) keeps its base axes and leg
+    azimuths; the link angles and sizes vary as for a coaxial one.
 
     Raises:
         InputError: no variable, or one named twice.
@@ -120,7 +122,7 @@ class DesignSpace:
         return tuple(v.name for v in self.variables)
 
     def design(self, values: Mapping[str, float], *, name: str = "candidate") -> SPMDesign:
-        """The coaxial design with these values of the variables.
+        """The design with these values of the variables (coaxial when ``base`` is).
 
         Raises:
             InputError: a variable missing, one not of this space, or a value that is
@@ -153,6 +155,15 @@ class DesignSpace:
         angles.update({k: float(v) for k, v in values.items() if k in ANGLE_VARIABLES})
         sizes: dict[str, Any] = {k: float(v) for k, v in values.items() if k in SIZE_VARIABLES}
         dimensions = dataclasses.replace(base.dimensions, **sizes)
+        if not base.is_coaxial:
+            return dataclasses.replace(
+                base,
+                alpha1=math.radians(angles["alpha1_deg"]),
+                alpha2=math.radians(angles["alpha2_deg"]),
+                beta=math.radians(angles["beta_deg"]),
+                dimensions=dimensions,
+                name=name,
+            )
         return SPMDesign.coaxial(
             angles["alpha1_deg"],
             angles["alpha2_deg"],

@@ -61,6 +61,7 @@ import numpy as np
 
 from ..design import SPMDesign
 from ..errors import InputError, SPMError
+from ._progress import quiet_optuna as _quiet_optuna
 from .objectives import DesignSpace, Variable
 from .study import (
     OBJECTIVES,
@@ -70,7 +71,6 @@ from .study import (
     StudyResult,
     StudySettings,
     TrialRecord,
-    _quiet_optuna,
     _storage,
     evaluate,
     study_result,

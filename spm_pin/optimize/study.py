@@ -34,13 +34,10 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import logging
 import math
-import sys
 import time
 import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +47,8 @@ from ..design import SPMDesign
 from ..errors import InputError, SPMError
 from ._engines import ClusterError
 from ._margin_check import margin_check_of
+from ._progress import Progress as _Progress
+from ._progress import quiet_optuna as _quiet_optuna
 from .objectives import DesignSpace, cone_dexterity, envelope, global_conditioning_index
 from .scoring import safe_workspace_score
 from .torque import Payload, cone_motion, peak_torque
@@ -230,18 +229,35 @@ def _check_objectives(objectives: Sequence[str]) -> tuple[str, ...]:
     return names
 
 
+def _check_coaxial(design: SPMDesign, names: Sequence[str], settings: StudySettings) -> None:
+    """The workspace objectives and the required tilt score the gap plane: coaxial
+    designs only."""
+    needs = [n for n in names if n in _SCORE_OBJECTIVES]
+    if settings.required_tilt_deg is not None:
+        needs.append("--required-tilt")
+    if needs and not design.is_coaxial:
+        raise InputError(
+            f"{', '.join(needs)} score the safe workspace in the gap plane of a coaxial "
+            f"design; {design.name!r} is not coaxial: choose from cone_dexterity, "
+            "peak_torque, envelope",
+            argument="objectives",
+        )
+
+
 def evaluate(
     design: SPMDesign, objectives: Sequence[str], settings: StudySettings | None = None
 ) -> Evaluation:
     """The objectives and constraints of one design, as a study computes them.
 
     Raises:
-        InputError: an unknown objective.
+        InputError: an unknown objective, or a workspace objective (or the required
+            tilt) for a design that is not coaxial.
         SPMError: the design cannot be evaluated (it does not assemble, the motion
             leaves its workspace, ...).
     """
     names = _check_objectives(objectives)
     settings = StudySettings() if settings is None else settings
+    _check_coaxial(design, names, settings)
     scores: dict[str, float] = {}
     constraints: dict[str, float] = {}
     score = None
@@ -480,48 +496,6 @@ def _storage(storage: str | Path | None) -> Any:
     return JournalStorage(JournalFileBackend(str(path)))
 
 
-@contextmanager
-def _quiet_optuna() -> Iterator[None]:
-    """Optuna's per-trial log lines off (the progress bar says enough)."""
-    import optuna
-
-    level = optuna.logging.get_verbosity()
-    optuna.logging.set_verbosity(logging.WARNING)
-    try:
-        yield
-    finally:
-        optuna.logging.set_verbosity(level)
-
-
-class _Progress:
-    """A progress bar on stderr: tqdm if importable, else a plain line per trial."""
-
-    def __init__(self, total: int, enabled: bool) -> None:
-        self._bar: Any = None
-        self._enabled = enabled
-        self._done = 0
-        self._total = total
-        if not enabled:
-            return
-        try:
-            from tqdm import tqdm
-        except ImportError:  # pragma: no cover - tqdm is a core dependency
-            return
-        self._bar = tqdm(total=total, desc="spm optimize", unit="trial", file=sys.stderr)
-
-    def update(self, text: str) -> None:
-        self._done += 1
-        if self._bar is not None:
-            self._bar.set_postfix_str(text, refresh=False)
-            self._bar.update(1)
-        elif self._enabled:
-            print(f"trial {self._done}/{self._total}: {text}", file=sys.stderr)
-
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
-
-
 def _record(trial: Any, names: tuple[str, ...]) -> TrialRecord:
     """The record of a finished (COMPLETE or FAIL) Optuna ``FrozenTrial``."""
     from optuna.trial import TrialState
@@ -676,6 +650,7 @@ def run_study(
     if not isinstance(settings, StudySettings):
         raise InputError("settings must be a StudySettings", argument="settings")
     _check_engine(workers, scheduler)
+    _check_coaxial(space.base, names, settings)
     for values in enqueue:
         space.design(values)  # checked now: InputError before anything is stored
     spec = _spec(space, names, settings, seed, population_size)

@@ -248,7 +248,7 @@ def find_orthogonal_optimum(
         InputError: ``n_trials`` not a positive integer or bounds not within (0, 180).
     """
     from ..errors import SPMError
-    from .study import _quiet_optuna
+    from ._progress import quiet_optuna as _quiet_optuna
 
     low, high = bounds_deg
     if not isinstance(n_trials, int) or n_trials < 1 or not 0.0 < low < high < 180.0:
