@@ -228,3 +228,21 @@ def test_the_prototype_scores_of_spm_optimize_equal_spm_workspace(
     assert scores["max_tilt"] == summary["max_safe_tilt_deg"]
     assert scores["tilt"] == summary["safe_tilt_every_direction_deg"]
     assert 0.2 < scores["safe_fraction"] < 0.3 and 40.0 < scores["max_tilt"] < 55.0
+
+
+def test_spm_optimize_lands_on_the_closed_form_optimum(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The command line, as a user runs it, on the closed-form problem: the best
+    alpha2 within 0.5 deg of 60 (alpha1 = 45, beta = 90: the prototype's)."""
+    argv = [
+        "optimize", "--objectives", "cone_dexterity", "--cone", "0", "--vary",
+        "alpha2=50:85", "--trials", "60", "--seed", "0", "--allow-home-collision",
+        "--quiet", "--json",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    record = json.loads(capsys.readouterr().out)
+    (best,) = record["pareto"]
+    optimum = math.degrees(isotropic_alpha2(math.radians(45.0))[0])
+    assert abs(best["values"]["alpha2_deg"] - optimum) < 0.5, best
+    assert best["scores"]["cone_dexterity"] > 0.99
