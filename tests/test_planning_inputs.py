@@ -148,6 +148,35 @@ def test_plans_near_each_other_share_one_safe_set(eye: spm.SPMDesign) -> None:
     assert np.all(first["safe"].high >= np.radians(30.0 + 60.0))
 
 
+def test_an_unsafe_goal_is_refused_with_the_nearest_safe_input(eye: spm.SPMDesign) -> None:
+    """The refusal names the failing check and a safe input nearby (certified safe
+    within half a check step, so that a path to it can be certified); a brute-force
+    draw of 20,000 inputs inside that distance of the goal finds none such."""
+    from spm_pin.planning.input_space import _default_box, input_safe_set_of
+
+    goal = np.radians([-40.0, 0.0, 10.0])
+    with pytest.raises(PlanningError) as info:
+        plan_inputs(np.zeros(3), goal, eye)
+    error = info.value
+    assert error.check == "goal" and error.reasons and "collision" in error.reasons[0]
+    assert "the nearest safe input found is" in str(error) and "rpy" in str(error)
+    safe = input_safe_set_of(eye, PlanSettings(), *_default_box(np.zeros(3), goal))
+    nearest = np.asarray(error.nearest)
+    assert safe.evaluate(nearest[None]).safe[0]
+    found = float(np.linalg.norm(nearest - goal))
+    assert 0.0 < found < math.radians(45.0)
+    rng = np.random.default_rng(7)
+    direction = rng.normal(size=(20_000, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    radius = found * rng.uniform(0.0, 1.0, size=20_000) ** (1.0 / 3.0)
+    inside = goal + radius[:, None] * direction
+    slack = 0.5 * safe.settings.check_step_deg
+    assert not np.any(safe.evaluate(inside, want=slack).radius >= slack - 1e-12)
+    # The path to that input is planned.
+    path, _ = plan_inputs(np.zeros(3), nearest, eye)
+    np.testing.assert_allclose(path[-1], nearest, rtol=0.0, atol=1e-12)
+
+
 def test_bad_requests_are_refused_with_the_reason(eye: spm.SPMDesign) -> None:
     start = np.radians(EYE_START_DEG)
     with pytest.raises(InputError, match="cannot spin endlessly"):

@@ -41,7 +41,9 @@ import numpy.typing as npt
 
 from ..design import SPMDesign
 from ..errors import InputError, PlanningError
+from ..kinematics import forward_kinematics
 from ..model.robot import SPMRobot
+from ..rotations import rpy_from_matrix
 from ._evaluation import Evaluation
 from .safe_set import (
     LIPSCHITZ_FACTOR,
@@ -60,6 +62,7 @@ __all__ = [
     "DEFAULT_HALF_WIDTH_DEG",
     "InputSafeSet",
     "input_safe_set_of",
+    "nearest_safe_input",
     "plan_inputs",
 ]
 
@@ -80,6 +83,13 @@ REFINE_TRIES = 16
 REFINE_ROUNDS = 4
 REFINE_SPREAD_DEG = 4.0
 LIPSCHITZ_STEP_DEG = 0.5
+#: The search for the nearest safe input of an unsafe end point: sphere radii [deg],
+#: directions per sphere, directions bisected at most, and bisection steps.
+NEAREST_RADII_DEG = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 13.0, 16.0, 20.0, 25.0, 30.0,
+                     40.0, 50.0, 60.0, 75.0, 90.0)  # fmt: skip
+NEAREST_DIRECTIONS = 600
+NEAREST_TRIES = 100
+NEAREST_BISECTIONS = 12
 #: Seconds OMPL may search, and attempts before giving up.
 SEARCH_SECONDS = 5.0
 ATTEMPTS = 3
@@ -348,9 +358,22 @@ def plan_inputs(
     for name, theta in (("start", a), ("goal", b)):
         evaluation = safe.evaluate(theta[None])
         if not evaluation.safe[0]:
+            reason = evaluation.reason(0, safe.settings)
+            nearest = nearest_safe_input(safe, theta)
+            where = ""
+            if nearest is not None:
+                R = np.asarray(forward_kinematics(nearest, safe.design).R, dtype=float)
+                rpy = np.degrees(rpy_from_matrix(R)).round(2).tolist()
+                where = (
+                    f"; the nearest safe input found is "
+                    f"{np.degrees(nearest).round(2).tolist()} deg (orientation rpy {rpy} deg)"
+                )
             raise PlanningError(
                 f"the {name} theta = {np.round(np.degrees(theta), 3).tolist()} deg is not "
-                f"safe: {evaluation.reason(0, safe.settings)}"
+                f"safe: {reason}{where}",
+                reasons=(reason,),
+                check=name,
+                nearest=nearest,
             )
     straight = np.vstack([a, b])
     ok, _, evaluation = safe.certify(straight)
@@ -367,6 +390,75 @@ def plan_inputs(
         "safe": safe,
     }
     return path, facts
+
+
+def _sphere(count: int) -> FloatArray:
+    """``count`` unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
+    k = np.arange(count) + 0.5
+    z = 1.0 - 2.0 * k / count
+    azimuth = math.pi * (1.0 + math.sqrt(5.0)) * k
+    ring = np.sqrt(1.0 - z * z)
+    result: FloatArray = np.stack([ring * np.cos(azimuth), ring * np.sin(azimuth), z], axis=1)
+    return result
+
+
+def nearest_safe_input(safe: InputSafeSet, theta: npt.ArrayLike) -> FloatArray | None:
+    """A safe input near ``theta`` [rad], (3,), in the safe set's box, or None when
+    none is found within the largest radius.
+
+    The search: spheres of growing radius about theta (:data:`NEAREST_RADII_DEG`,
+    :data:`NEAREST_DIRECTIONS` directions each) up to the first that holds safe
+    inputs; along each of those directions (up to :data:`NEAREST_TRIES`) bisection
+    towards theta as far as the input stays safe; then, from the nearest of them,
+    steps to safe inputs nearer theta on small spheres about it (4, 2, 1, 0.5 and
+    0.25 deg). An approximation of the nearest safe input (a safe region thinner
+    than the spacing of the directions can be missed), not a proof. "Safe" here
+    means certified safe within half the check step of input motion, so that a path
+    to the input can be certified too (a point on the very boundary cannot)."""
+    centre = np.asarray(theta, dtype=float).reshape(3)
+
+    slack = 0.5 * safe.settings.check_step_deg  # the largest radius evaluate gives
+
+    def good(points: FloatArray) -> npt.NDArray[np.bool_]:
+        radius = safe.evaluate(points, want=slack).radius
+        result: npt.NDArray[np.bool_] = radius >= slack - 1e-12
+        return result
+
+    directions = _sphere(NEAREST_DIRECTIONS)
+    inner = 0.0
+    for radius in NEAREST_RADII_DEG:
+        ok = good(centre + math.radians(radius) * directions)
+        if np.any(ok):
+            break
+        inner = radius
+    else:
+        return None
+    found = directions[np.flatnonzero(ok)[:NEAREST_TRIES]]
+    low = np.full(found.shape[0], inner)
+    high = np.full(found.shape[0], radius)
+    for _ in range(NEAREST_BISECTIONS):
+        middle = 0.5 * (low + high)
+        inside = good(centre + np.radians(middle)[:, None] * found)
+        high = np.where(inside, middle, high)
+        low = np.where(inside, low, middle)
+    k = int(np.argmin(high))
+    best: FloatArray = centre + math.radians(float(high[k])) * found[k]
+    distance = float(np.linalg.norm(best - centre))
+    steps = _sphere(NEAREST_DIRECTIONS // 4)
+    for step_deg in (4.0, 2.0, 1.0, 0.5, 0.25):
+        while True:
+            tries = best + math.radians(step_deg) * steps
+            gaps = np.linalg.norm(tries - centre, axis=1)
+            nearer = gaps < distance - 1e-12
+            if not np.any(nearer):
+                break
+            order = np.flatnonzero(nearer)[np.argsort(gaps[nearer])]
+            inside = good(tries[order])
+            if not np.any(inside):
+                break
+            best = tries[order[int(np.argmax(inside))]]
+            distance = float(np.linalg.norm(best - centre))
+    return best
 
 
 def _angles(theta: npt.ArrayLike, name: str) -> FloatArray:
