@@ -195,8 +195,9 @@ def test_the_reference_configuration_refuses_other_arrangements() -> None:
         orthogonal_reference_dexterity(math.pi / 2, math.pi / 2, 0.5)
     with pytest.raises(InputError, match="reach the reference"):
         orthogonal_reference_dexterity(math.radians(30.0), math.radians(30.0))
-    with pytest.raises(InputError, match="alpha1_deg"):
-        orthogonal_design(float("nan"), 90.0)
+    for bad in (float("nan"), True, 180.0, "90"):
+        with pytest.raises(InputError, match="alpha1_deg"):
+            orthogonal_design(bad, 90.0)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="n_trials"):
         find_orthogonal_optimum(0)
 

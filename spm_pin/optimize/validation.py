@@ -49,7 +49,7 @@ import math
 import numpy as np
 
 from ..design import SPMDesign
-from ..errors import InputError, UnreachableError
+from ..errors import InputError, SPMError, UnreachableError
 from ..kinematics import inverse_kinematics, jacobian
 
 __all__ = [
@@ -147,7 +147,11 @@ def orthogonal_design(alpha1_deg: float, alpha2_deg: float) -> SPMDesign:
         DesignError: link angles with which the legs cannot be assembled at home.
     """
     for name, value in (("alpha1_deg", alpha1_deg), ("alpha2_deg", alpha2_deg)):
-        if not isinstance(value, (int, float)) or not 0.0 < value < 180.0:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not 0.0 < value < 180.0
+        ):
             raise InputError(
                 f"{name} must be an angle in (0, 180) deg, got {value!r}", argument=name
             )
@@ -247,7 +251,6 @@ def find_orthogonal_optimum(
     Raises:
         InputError: ``n_trials`` not a positive integer or bounds not within (0, 180).
     """
-    from ..errors import SPMError
     from ._progress import quiet_optuna as _quiet_optuna
 
     low, high = bounds_deg
