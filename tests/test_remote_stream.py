@@ -562,3 +562,53 @@ def test_a_browser_page_of_another_site_cannot_open_the_stream(server: Backgroun
         assert _send(ws, {"type": "ping", "seq": 1})["type"] == "pong"
     with _open(server) as ws:  # a program: no Origin header
         assert _send(ws, {"type": "ping", "seq": 2})["type"] == "pong"
+
+
+def test_a_change_during_a_state_read_is_read_again() -> None:
+    """StateCache: a goal accepted while a state read is under way is not lost (the
+    next request reads again), and a fresh read is reused within its age."""
+    import asyncio
+    import threading
+
+    from spm_pin.remote.stream import StateCache
+
+    class HeldTwin(KinematicBackend):
+        """The real kinematic twin whose second state read waits to be let go."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.reads = 0
+            self.entered, self.release = threading.Event(), threading.Event()
+
+        def state(self) -> Any:
+            self.reads += 1
+            result = super().state()
+            if self.reads == 2:  # read, then held before it is handed back
+                self.entered.set()
+                assert self.release.wait(10.0)
+            return result
+
+    twin = HeldTwin()
+    cache = StateCache(twin)
+    goal = np.radians([10.0, 5.0, 0.0])
+
+    async def run() -> tuple[str, str, str]:
+        first = await cache.latest(10.0)
+        assert await cache.latest(10.0) == first and twin.reads == 1  # fresh: reused
+        cache.invalidate()
+        pending = asyncio.ensure_future(cache.latest(10.0))  # read 2, held
+        assert await asyncio.to_thread(twin.entered.wait, 10.0)
+        twin.move(goal)  # accepted while read 2 is under way (it saw the old joints)
+        cache.invalidate()
+        twin.release.set()
+        second = await pending
+        third = await cache.latest(10.0)  # read 3: the change is read
+        return first, second, third
+
+    first, second, third = asyncio.run(run())
+    assert twin.reads == 3
+    assert json.loads("{" + second)["theta_deg"] == [0.0, 0.0, 0.0]  # read before the move
+    theta = json.loads("{" + third)["theta_deg"]
+    np.testing.assert_allclose(theta, np.degrees(goal), rtol=0.0, atol=1e-9)
+    assert json.loads("{" + first)["theta_deg"] == [0.0, 0.0, 0.0]
+    twin.close()

@@ -143,15 +143,17 @@ class StateCache:
     """The latest state as JSON text, shared by every connection.
 
     Read from the backend (in a worker thread) at most once per ``max_age``
-    seconds asked for, however many connections ask. While a read is under way the
-    pushers send the state read before it (its ``time`` says when) rather than
-    wait: a slow read delays no push.
+    seconds asked for, however many connections ask; a read's age counts from when
+    it started. While a read is under way the pushers send the state read before it
+    (its ``time`` says when) rather than wait: a slow read delays no push. A change
+    (:meth:`invalidate`) during a read makes the next request read again.
     """
 
     def __init__(self, twin: TwinBackend) -> None:
         self._twin = twin
         self._text = ""
         self._read_at = -math.inf
+        self._changes = 0  # invalidations so far
         self._lock = asyncio.Lock()
 
     def _read(self) -> str:
@@ -166,13 +168,17 @@ class StateCache:
             return self._text
         async with self._lock:
             if time.monotonic() - self._read_at >= max_age:
+                changes, started = self._changes, time.monotonic()
                 self._text = await to_thread.run_sync(self._read)
-                self._read_at = time.monotonic()
+                # A change during the read may be missing from it: read again next.
+                self._read_at = started if self._changes == changes else -math.inf
         return self._text
 
     def invalidate(self) -> None:
-        """The state changed: read it again at the next push."""
+        """The state changed: read it again at the next push (also when a read is
+        under way: it may have missed the change)."""
         self._read_at = -math.inf
+        self._changes += 1
 
 
 _ids = itertools.count(1)
