@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from ..model.robot import SPMRobot
     from .safe_set import PlanSettings
 
-__all__ = ["YAW_TOLERANCE_M", "Evaluation", "sample_checks"]
+__all__ = ["YAW_TOLERANCE_M", "Evaluation", "nearest_phrase", "sample_checks"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -26,6 +26,22 @@ BoolArray = npt.NDArray[np.bool_]
 #: Largest change of a link distance when the whole mechanism turns about the axis
 #: [m] (the base's tessellation; measured: 35 um), added to the clearance margin.
 YAW_TOLERANCE_M = 5e-5
+
+
+def nearest_phrase(design: SPMDesign, nearest: FloatArray | None, what: str) -> str:
+    """ "; the nearest safe input <what> [..] deg (orientation rpy [..] deg)" for a
+    refusal's message, or "" without a nearest input."""
+    if nearest is None:
+        return ""
+    from ..kinematics import forward_kinematics
+    from ..rotations import rpy_from_matrix
+
+    R = np.asarray(forward_kinematics(nearest, design).R, dtype=float)
+    rpy = np.degrees(rpy_from_matrix(R)).round(2).tolist()
+    return (
+        f"; the nearest safe input {what} {np.degrees(nearest).round(2).tolist()} deg "
+        f"(orientation rpy {rpy} deg)"
+    )
 
 
 @dataclasses.dataclass(frozen=True)

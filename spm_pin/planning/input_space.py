@@ -41,10 +41,8 @@ import numpy.typing as npt
 
 from ..design import SPMDesign
 from ..errors import InputError, PlanningError
-from ..kinematics import forward_kinematics
 from ..model.robot import SPMRobot
-from ..rotations import rpy_from_matrix
-from ._evaluation import Evaluation
+from ._evaluation import Evaluation, nearest_phrase
 from .safe_set import (
     LIPSCHITZ_FACTOR,
     Lipschitz,
@@ -360,14 +358,7 @@ def plan_inputs(
         if not evaluation.safe[0]:
             reason = evaluation.reason(0, safe.settings)
             nearest = nearest_safe_input(safe, theta)
-            where = ""
-            if nearest is not None:
-                R = np.asarray(forward_kinematics(nearest, safe.design).R, dtype=float)
-                rpy = np.degrees(rpy_from_matrix(R)).round(2).tolist()
-                where = (
-                    f"; the nearest safe input found is "
-                    f"{np.degrees(nearest).round(2).tolist()} deg (orientation rpy {rpy} deg)"
-                )
+            where = nearest_phrase(safe.design, nearest, "found is")
             raise PlanningError(
                 f"the {name} theta = {np.round(np.degrees(theta), 3).tolist()} deg is not "
                 f"safe: {reason}{where}",

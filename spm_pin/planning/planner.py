@@ -31,8 +31,8 @@ import numpy.typing as npt
 from .._checks import as_rotation
 from ..design import SPMDesign
 from ..errors import InputError, PlanningError
-from ..kinematics import forward_kinematics, inverse_kinematics
-from ..rotations import rpy_from_matrix
+from ..kinematics import inverse_kinematics
+from ._evaluation import nearest_phrase
 from .safe_set import PlanSettings, SafeSet, safe_set_of
 
 if TYPE_CHECKING:
@@ -194,14 +194,7 @@ def _require_safe(safe: SafeSet, theta: FloatArray, name: str) -> None:
     if not evaluation.safe[0]:
         reason = evaluation.reason(0, safe.settings)
         nearest = _nearest_safe(safe, theta)
-        where = ""
-        if nearest is not None:
-            R = np.asarray(forward_kinematics(nearest, safe.design).R, dtype=float)
-            rpy = np.degrees(rpy_from_matrix(R)).round(2).tolist()
-            where = (
-                f"; the nearest safe input is {np.degrees(nearest).round(2).tolist()} deg "
-                f"(orientation rpy {rpy} deg)"
-            )
+        where = nearest_phrase(safe.design, nearest, "is")
         raise PlanningError(
             f"the {name} {np.degrees(theta).round(3).tolist()} deg is unsafe: {reason}{where}",
             reasons=(reason,),
