@@ -39,8 +39,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .. import _jit
 from ..dynamics import XM540_W150, ReducedDynamics, ServoModel
 from ..errors import InputError, SPMError
+from . import _dynamic_kernel
 from ._core import BoolArray, FloatArray, IntArray, OrientCore, StepResult
 from .settings import OrientSettings, _choice, _number
 
@@ -139,6 +141,9 @@ class DynamicCore(OrientCore):
         torque_speed: The input speeds [rad/s] at which ``torque`` was applied.
         servo_load: The largest load (:meth:`~spm_pin.dynamics.ServoModel.utilisation`,
             1 on the envelope) over the last control period, (N,).
+        fused: Whether the physics steps of a period run in one compiled call
+            (:mod:`~spm_pin.envs._dynamic_kernel`; the same results as the numpy loop,
+            which takes over where the call stops); set False for the loop alone.
     """
 
     def __init__(self, settings: OrientSettings, num: int, physics: PhysicsSettings) -> None:
@@ -155,6 +160,10 @@ class DynamicCore(OrientCore):
         self.torque = np.zeros((num, 3))
         self.torque_speed = np.zeros((num, 3))
         self.servo_load = np.zeros(num)
+        #: The compiled period where numba is installed, not switched off
+        #: (``SPM_PIN_JIT=0``) and the dynamics run compiled; False: the loop alone.
+        self.fused = True
+        self._fused_kernel: Any = None
 
     def reset_rows(self, rows: IntArray, rngs: list[np.random.Generator]) -> None:
         """Start new episodes in ``rows`` at rest, each servo's goal where it stands."""
@@ -202,6 +211,53 @@ class DynamicCore(OrientCore):
             return ok, th, sp, rot
         return np.ones(n, dtype=bool), out.theta, out.theta_dot, out.R
 
+    def _period_kernel(self) -> Any:
+        """The compiled :func:`~spm_pin.envs._dynamic_kernel.period`, or None."""
+        if not self.fused or self.dynamics._kernels() is None:
+            return None
+        kernel = self._fused_kernel
+        if kernel is None:
+            if not _jit.available():
+                self.fused = False
+                return None
+            kernel = self._fused_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["period"]
+        return kernel
+
+    def _fused_steps(
+        self,
+        state: tuple[FloatArray, FloatArray, FloatArray],
+        drive: tuple[FloatArray, FloatArray, FloatArray],
+        records: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    ) -> int:
+        """The physics steps of the period that :func:`~spm_pin.envs._dynamic_kernel.
+        period` completes for all rows, in place on ``state`` (theta, speed, R) and
+        ``records`` (path, torque, torque_speed, load) under the ``drive`` (goal_start,
+        goal_speed, wanted); 0 without the kernel (or for arrays it does not take)."""
+        kernel = self._period_kernel()
+        arrays = (*state, *drive, *records)
+        if kernel is None or not all(
+            x.dtype == np.float64 and x.flags.c_contiguous for x in arrays
+        ):
+            return 0
+        servo_model = self.servo
+        done: int = kernel(
+            *state,
+            *drive,
+            self.physics.actuation == "position",
+            (
+                float(servo_model.kp),
+                float(servo_model.kd),
+                float(servo_model.stall_torque),
+                float(servo_model.no_load_speed),
+            ),
+            float(self.dt),
+            int(self.substeps),
+            self.physics.integrator == "rk4",
+            self.dynamics._constants(),
+            *records,
+        )
+        return done
+
     def _last_safe(self, path: FloatArray, rows: IntArray, high: IntArray) -> IntArray:
         """For each of ``rows`` (indices into the path's robots): the last physics step
         k < high[i] whose state path[k, i] passed the safety checks, by bisection
@@ -241,7 +297,14 @@ class DynamicCore(OrientCore):
         torque_speed = self.torque_speed[rows].copy()
         load = np.zeros(n)
         alive = np.arange(n)
-        for k in range(self.substeps):
+        # The compiled period goes as far as every row steps as in the loop below;
+        # the loop takes the rest (none, usually) from the state it leaves.
+        done = self._fused_steps(
+            (theta, speed, R),
+            (goal_start, goal_speed, np.asarray(wanted)),
+            (path, torque, torque_speed, load),
+        )
+        for k in range(done, self.substeps):
             th, sp = theta[alive], speed[alive]
             lower, upper = self._envelope(sp)
             if position:  # the goal moves at goal_speed through the period

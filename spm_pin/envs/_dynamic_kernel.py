@@ -1,0 +1,228 @@
+r"""The physics steps of one control period of :class:`~spm_pin.envs._dynamic.DynamicCore`
+for N robots in one call, in a form that numba compiles (:func:`spm_pin._jit.kernels`
+of :data:`KERNELS`).
+
+:meth:`DynamicCore.step_rows <spm_pin.envs._dynamic.DynamicCore.step_rows>` runs
+``substeps`` physics steps per control period; in numpy each one costs a few dozen
+array calls on the surviving robots, nearly all of the time for one robot. Its loop
+body is repeated here row by row in Python floats, the same operations in the same
+order (so the compiled kernel gives the numpy loop's bits):
+
+* the servo: ``"position"``: the goal moves at the goal speed through the period,
+  ``goal = goal_start + goal_speed (k dt)``, and the PD loop gives
+  ``kp (goal - theta) + kd (goal_speed - theta_dot)``; ``"torque"``: the wanted torque;
+* the torque-speed envelope at the present speed
+  (:meth:`~spm_pin.dynamics.ServoModel.torque_limits`) and the clip to it;
+* the reduced-dynamics step of :mod:`spm_pin.dynamics._reduced_kernel` (rotation warm
+  started from the last one, then Euler or rk4), as
+  :meth:`~spm_pin.dynamics.ReducedDynamics.step` takes it;
+* the records: the path of input angles, the torque and the speed it was applied
+  at, the largest servo load (:meth:`~spm_pin.dynamics.ServoModel.utilisation`).
+
+:func:`period` stops before the first physics step in which any robot meets what the
+numpy loop treats specially (an input the dynamics' checks refuse: too large, NaN or
+inf; a rotation the warm start does not settle, which the numpy path solves by
+forward kinematics; a singularity) and returns how many steps it completed: the
+numpy loop goes on from there with the state it left, so the results, the errors and
+the ends are those of the numpy loop. Nothing here checks its arguments: the caller
+passes C-contiguous float arrays.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from .._checks import ANGLE_LIMIT
+from ..dynamics._checks import LIMITS
+from ..dynamics._reduced_kernel import (
+    KERNELS as REDUCED_KERNELS,
+)
+from ..dynamics._reduced_kernel import (
+    STATUS_OK,
+    Constants,
+    _home_rotation,
+    _mat_of,
+    _put_mat,
+    _row_step,
+    _vec_of,
+)
+
+__all__ = ["KERNELS", "period"]
+
+FloatArray = npt.NDArray[np.float64]
+Vec = tuple[float, float, float]
+#: The servo's (kp [N m/rad], kd [N m s/rad], stall torque [N m], no-load speed [rad/s]).
+Servo = tuple[float, float, float, float]
+
+#: The bounds of :meth:`~spm_pin.dynamics.ReducedDynamics.step`'s input checks: input
+#: angles [rad], speeds [rad/s], torques [N m] (a row beyond them is refused there).
+_ANGLE_BOUND = float(ANGLE_LIMIT)
+_SPEED_BOUND = float(LIMITS["[rad/s]"])
+_TORQUE_BOUND = float(LIMITS["[N m]"])
+
+
+def _within(x: Vec, bound: float) -> bool:
+    """Every |x_j| <= bound (False for NaN), as the dynamics' ``max |x| <= bound``."""
+    return abs(x[0]) <= bound and abs(x[1]) <= bound and abs(x[2]) <= bound
+
+
+def _finite_rotation(R: FloatArray) -> bool:
+    """Every entry finite (the dynamics' check of the warm start)."""
+    for i in range(3):
+        for j in range(3):
+            if not abs(R[i, j]) < math.inf:
+                return False
+    return True
+
+
+def _clip_torque(raw: float, speed: float, stall: float, no_load: float) -> float:
+    """``raw`` clipped to the torque-speed envelope at ``speed``: the formula of
+    :meth:`~spm_pin.dynamics.ServoModel.torque_limits`, then ``np.clip`` (NaN stays
+    NaN, as there)."""
+    slope = speed / no_load
+    lower = -stall * (1.0 + slope)
+    if lower < -stall:  # np.maximum(-stall, lower)
+        lower = -stall
+    upper = stall * (1.0 - slope)
+    if upper > stall:  # np.minimum(stall, upper)
+        upper = stall
+    value = raw
+    if value < lower:
+        value = lower
+    if value > upper:
+        value = upper
+    return value
+
+
+def _servo(
+    goal_start: float, goal_speed: float, offset: float, theta: float, speed: float, servo: Servo
+) -> float:
+    """The PD loop's torque [N m] before the envelope: kp (goal - theta) +
+    kd (goal_speed - speed), the goal ``goal_start + goal_speed offset``."""
+    goal = goal_start + goal_speed * offset
+    return servo[0] * (goal - theta) + servo[1] * (goal_speed - speed)
+
+
+def _load(tau: Vec, speed: Vec, stall: float, no_load: float) -> float:
+    """Largest utilisation max(|tau / stall + speed / no_load|, |tau / stall|) of the
+    three servos."""
+    largest = 0.0
+    for j in range(3):
+        t = tau[j] / stall
+        duty = t + speed[j] / no_load
+        value = abs(duty)
+        if not value > abs(t):
+            value = abs(t)
+        if j == 0 or value > largest:
+            largest = value
+    return largest
+
+
+def period(
+    theta: FloatArray,
+    speed: FloatArray,
+    R: FloatArray,
+    goal_start: FloatArray,
+    goal_speed: FloatArray,
+    wanted: FloatArray,
+    position: bool,
+    servo: Servo,
+    dt: float,
+    substeps: int,
+    rk4: bool,
+    k: Constants,
+    path: FloatArray,
+    torque: FloatArray,
+    torque_speed: FloatArray,
+    load: FloatArray,
+) -> int:
+    """The physics steps of one control period of rows (N, 3), in place.
+
+    Args:
+        theta, speed: Input angles [rad] and speeds [rad/s] (N, 3), stepped in place.
+        R: Platform rotations (N, 3, 3): the warm starts, replaced by each step's.
+        goal_start, goal_speed: The servos' goal positions at the period's start
+            [rad] and their speeds [rad/s] (``"position"``).
+        wanted: The torques asked for [N m] (``"torque"``).
+        position: ``"position"`` actuation (else ``"torque"``).
+        servo: (kp, kd, stall torque, no-load speed).
+        dt: The physics step [s].
+        substeps: Physics steps in the period.
+        rk4: rk4 (else semi-implicit Euler).
+        k: The reduced dynamics' constants.
+        path: (substeps + 1, N, 3): the input angles after each step, written from
+            row 1 on.
+        torque, torque_speed: The last step's torques [N m] and the speeds they were
+            applied at [rad/s] (N, 3), in place.
+        load: The largest servo load so far (N,), in place.
+
+    Returns:
+        The number of physics steps completed for every row (``substeps`` when all
+        were; fewer when a step met what the numpy loop must take, which it then
+        takes from the state left here).
+    """
+    stall, no_load = servo[2], servo[3]
+    n = theta.shape[0]
+    theta_next = np.empty((n, 3))
+    speed_next = np.empty((n, 3))
+    R_next = np.empty((n, 3, 3))
+    tau_next = np.empty((n, 3))
+    for step in range(substeps):
+        offset = step * dt
+        for row in range(n):
+            th = _vec_of(theta[row])
+            sp = _vec_of(speed[row])
+            if position:
+                gs, gv = goal_start[row], goal_speed[row]
+                raw = (
+                    _servo(gs[0], gv[0], offset, th[0], sp[0], servo),
+                    _servo(gs[1], gv[1], offset, th[1], sp[1], servo),
+                    _servo(gs[2], gv[2], offset, th[2], sp[2], servo),
+                )
+            else:
+                raw = _vec_of(wanted[row])
+            tau = (
+                _clip_torque(raw[0], sp[0], stall, no_load),
+                _clip_torque(raw[1], sp[1], stall, no_load),
+                _clip_torque(raw[2], sp[2], stall, no_load),
+            )
+            if not (
+                _within(th, _ANGLE_BOUND)
+                and _within(sp, _SPEED_BOUND)
+                and _within(tau, _TORQUE_BOUND)
+                and _finite_rotation(R[row])
+            ):
+                return step
+            settled, rotation = _home_rotation(th, _mat_of(R[row]), k)
+            if not settled:
+                return step
+            status, t, r, _ = _row_step(th, sp, tau, rotation, dt, rk4, k)
+            if status != STATUS_OK:
+                return step
+            _put_mat(R_next[row], rotation)
+            for j in range(3):
+                theta_next[row, j] = t[j]
+                speed_next[row, j] = r[j]
+                tau_next[row, j] = tau[j]
+        for row in range(n):
+            sp = _vec_of(speed[row])
+            tau = _vec_of(tau_next[row])
+            value = _load(tau, sp, stall, no_load)
+            if not load[row] > value:  # np.maximum(load, value)
+                load[row] = value
+            for j in range(3):
+                torque[row, j] = tau[j]
+                torque_speed[row, j] = sp[j]
+                theta[row, j] = theta_next[row, j]
+                speed[row, j] = speed_next[row, j]
+                path[step + 1, row, j] = theta_next[row, j]
+                for m in range(3):
+                    R[row, j, m] = R_next[row, j, m]
+    return substeps
+
+
+#: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
+KERNELS = (*REDUCED_KERNELS, _within, _finite_rotation, _clip_torque, _servo, _load, period)
