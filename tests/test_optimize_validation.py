@@ -200,6 +200,9 @@ def test_the_reference_configuration_refuses_other_arrangements() -> None:
             orthogonal_design(bad, 90.0)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="n_trials"):
         find_orthogonal_optimum(0)
+    for bounds in ((90.0,), (120.0, 60.0), ("a", "b"), (math.nan, 90.0)):
+        with pytest.raises(InputError, match="n_trials"):
+            find_orthogonal_optimum(5, bounds_deg=bounds)  # type: ignore[arg-type]
 
 
 def test_the_prototype_scores_of_spm_optimize_equal_spm_workspace(

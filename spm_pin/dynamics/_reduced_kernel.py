@@ -532,6 +532,23 @@ def accelerations(
     return singular
 
 
+def _rk4_stage(
+    theta: Vec, rate: Vec, r: Vec, a: Vec, step: float, tau: Vec, R: Mat, k: Constants
+) -> Any:
+    """One intermediate RK4 stage of one robot, at theta + step r with the rate
+    rate + step a, its rotation warm-started from R: (status, the stage's rate, its
+    theta_ddot)."""
+    t = (theta[0] + step * r[0], theta[1] + step * r[1], theta[2] + step * r[2])
+    rs = (rate[0] + step * a[0], rate[1] + step * a[1], rate[2] + step * a[2])
+    ok, Rs = _home_rotation(t, R, k)
+    if not ok:
+        return STATUS_ROTATION, rs, rs
+    bad, _, acc = _row_acceleration(t, rs, tau, Rs, k)
+    if bad:
+        return STATUS_SINGULAR, rs, acc
+    return STATUS_OK, rs, acc
+
+
 def _row_step(theta: Vec, rate: Vec, tau: Vec, R: Mat, h: float, rk4: bool, k: Constants) -> Any:
     """One time step of one robot from a settled rotation R: (status, theta', rate',
     theta_ddot)."""
@@ -544,30 +561,15 @@ def _row_step(theta: Vec, rate: Vec, tau: Vec, R: Mat, h: float, rk4: bool, k: C
         t = (theta[0] + h * r[0], theta[1] + h * r[1], theta[2] + h * r[2])
         return STATUS_OK, t, r, a1
     half = 0.5 * h
-    t2 = (theta[0] + half * rate[0], theta[1] + half * rate[1], theta[2] + half * rate[2])
-    r2 = (rate[0] + half * a1[0], rate[1] + half * a1[1], rate[2] + half * a1[2])
-    ok, R2 = _home_rotation(t2, R, k)
-    if not ok:
-        return STATUS_ROTATION, zero, zero, zero
-    bad, _, a2 = _row_acceleration(t2, r2, tau, R2, k)
-    if bad:
-        return STATUS_SINGULAR, zero, zero, zero
-    t3 = (theta[0] + half * r2[0], theta[1] + half * r2[1], theta[2] + half * r2[2])
-    r3 = (rate[0] + half * a2[0], rate[1] + half * a2[1], rate[2] + half * a2[2])
-    ok, R3 = _home_rotation(t3, R, k)
-    if not ok:
-        return STATUS_ROTATION, zero, zero, zero
-    bad, _, a3 = _row_acceleration(t3, r3, tau, R3, k)
-    if bad:
-        return STATUS_SINGULAR, zero, zero, zero
-    t4 = (theta[0] + h * r3[0], theta[1] + h * r3[1], theta[2] + h * r3[2])
-    r4 = (rate[0] + h * a3[0], rate[1] + h * a3[1], rate[2] + h * a3[2])
-    ok, R4 = _home_rotation(t4, R, k)
-    if not ok:
-        return STATUS_ROTATION, zero, zero, zero
-    bad, _, a4 = _row_acceleration(t4, r4, tau, R4, k)
-    if bad:
-        return STATUS_SINGULAR, zero, zero, zero
+    status, r2, a2 = _rk4_stage(theta, rate, rate, a1, half, tau, R, k)
+    if status != STATUS_OK:
+        return status, zero, zero, zero
+    status, r3, a3 = _rk4_stage(theta, rate, r2, a2, half, tau, R, k)
+    if status != STATUS_OK:
+        return status, zero, zero, zero
+    status, r4, a4 = _rk4_stage(theta, rate, r3, a3, h, tau, R, k)
+    if status != STATUS_OK:
+        return status, zero, zero, zero
     sixth = h / 6.0
     t = (
         theta[0] + sixth * (rate[0] + 2.0 * (r2[0] + r3[0]) + r4[0]),
@@ -644,6 +646,7 @@ KERNELS = (
     rotations,
     terms,
     accelerations,
+    _rk4_stage,
     _row_step,
     step,
 )

@@ -253,8 +253,16 @@ def find_orthogonal_optimum(
     """
     from ._progress import quiet_optuna as _quiet_optuna
 
-    low, high = bounds_deg
-    if not isinstance(n_trials, int) or n_trials < 1 or not 0.0 < low < high < 180.0:
+    try:
+        low, high = (float(value) for value in bounds_deg)
+    except (TypeError, ValueError):
+        low = high = math.nan  # refused below, with the reason
+    if (
+        isinstance(n_trials, bool)
+        or not isinstance(n_trials, int)
+        or n_trials < 1
+        or not 0.0 < low < high < 180.0
+    ):
         raise InputError(
             f"n_trials must be a positive integer and 0 < low < high < 180, got "
             f"{n_trials!r} and {bounds_deg!r}",
