@@ -30,8 +30,13 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    simulator (:class:`~spm_pin.dynamics.Simulator`), both semi-implicit Euler at 1 ms,
    the robot hanging and swinging freely for 10 s (1 s chunks timed); the loop-closure
    error after it.
-7. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
-   (N = 4096, one core).
+7. ``cover``: the batched step of 1. with a saved cover of the safe set
+   (``OrientSettings.cover``: states in certified cells pass the safety check by a
+   table lookup): the cover's fill level, fill time and file size, the time per step,
+   the fraction of the safety checks the lookup settled, and whether the robots
+   reached the same states as without the cover.
+8. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
+   (N = 4096, one core), without and with the cover.
 
 MuJoCo is optional: without it, ``mujoco_peer`` says so and the rest runs.
 """
@@ -50,6 +55,9 @@ THREADS_LIMITED = limit_to_one_thread()
 
 import importlib.util  # noqa: E402
 import math  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import gymnasium  # noqa: E402
 import numpy as np  # noqa: E402
@@ -61,9 +69,11 @@ from spm_pin.envs import (  # noqa: E402
     OrientDynamicEnv,
     OrientDynamicVectorEnv,
     OrientEnv,
+    OrientSettings,
     OrientVectorEnv,
 )
 from spm_pin.kinematics import forward_kinematics  # noqa: E402
+from spm_pin.planning import SafeCover, safe_set_of  # noqa: E402
 
 from ._common import (  # noqa: E402
     format_rate,
@@ -106,6 +116,7 @@ class Sizes:
     dynamic_single_repeats: int
     swing_time: float  # [s] of the physics section
     swing_chunk: float  # [s] timed at a time
+    cover_level: int  # finest level the cover of the ``cover`` section is filled to
 
 
 FULL = Sizes(
@@ -118,6 +129,7 @@ FULL = Sizes(
     dynamic_single_repeats=50,
     swing_time=10.0,
     swing_chunk=1.0,
+    cover_level=3,
 )
 QUICK = Sizes(
     batch=256,
@@ -129,6 +141,7 @@ QUICK = Sizes(
     dynamic_single_repeats=5,
     swing_time=0.2,
     swing_chunk=0.05,
+    cover_level=0,
 )
 
 
@@ -149,6 +162,45 @@ def closure_error(theta: FloatArray, R: FloatArray, design: spm.SPMDesign) -> fl
     w = forward_kinematics(theta, design).w
     v = np.einsum("nij,kj->nki", R, design.v0)
     return float(np.abs(np.einsum("nki,nki->nk", w, v) - math.cos(design.alpha2)).max())
+
+
+def bench_cover(sizes: Sizes, plain: OrientVectorEnv) -> dict[str, Any]:
+    """``OrientVectorEnv`` with a cover filled to ``cover_level`` and saved, per env
+    step, stepped with the same episodes and actions as ``plain`` (already stepped by
+    :func:`time_call` with ``repeats``): the fill time, the file's size, the fraction
+    of the safety checks the lookup settled, the same states as ``plain``."""
+    settings = OrientSettings()
+    cover = SafeCover(safe_set_of(settings.the_design, settings.plan_settings))
+    start = time.perf_counter()
+    cover.fill(max_level=sizes.cover_level)
+    fill_s = time.perf_counter() - start
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "cover.npz"
+        cover.save(path)
+        size = path.stat().st_size
+        start = time.perf_counter()
+        env = OrientVectorEnv(sizes.batch, settings, cover=str(path))
+        load_s = time.perf_counter() - start
+    env.reset(seed=SEED)
+    timed = time_call(_stepper(env, sizes.batch), repeats=sizes.repeats)
+    lookup = env.core.lookup
+    assert lookup is not None
+    return {
+        **timed.timing.summary(items=sizes.batch),
+        "n": sizes.batch,
+        "cover_level": sizes.cover_level,
+        "fill_s": fill_s,
+        "load_s": load_s,
+        "file_bytes": size,
+        "covered_root_cells": lookup.covered_root_cells,
+        "covered_finer_cells": lookup.covered_finer_cells,
+        "checks": lookup.asked,
+        "settled_fraction": lookup.settled / lookup.asked if lookup.asked else float("nan"),
+        "same_states_as_without": bool(
+            np.array_equal(env.core.theta, plain.core.theta)
+            and np.array_equal(env.core.R, plain.core.R)
+        ),
+    }
 
 
 def bench_dynamic(sizes: Sizes) -> dict[str, Any]:
@@ -278,6 +330,8 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     vector.reset(seed=SEED)
     timed = time_call(_stepper(vector, sizes.batch), repeats=sizes.repeats)
     results["vector"] = {**timed.timing.summary(items=sizes.batch), "n": sizes.batch}
+    cover = bench_cover(sizes, vector)
+    cover["speed_ratio_vs_without"] = results["vector"]["median_s"] / cover["median_s"]
     single = OrientEnv(max_steps=10**7)
     single.reset(seed=SEED)
     timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats)
@@ -305,11 +359,16 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
             "single": mujoco_peer["single"]["median_s"] / dynamic["single"]["median_s"],
         }
     physics = bench_physics(sizes)
-    rate = results["vector"]["per_second"] if sizes.batch == 4096 else float("nan")
+    full = sizes.batch == 4096
+    rate = results["vector"]["per_second"] if full else float("nan")
+    rate_cover = cover["per_second"] if full else float("nan")
     targets: dict[str, Any] = {}
     if not quick:
         targets["vector_steps_per_second"] = target(
             rate, TARGET_STEPS_PER_SECOND, at_least=True, unit="1/s"
+        )
+        targets["vector_cover_steps_per_second"] = target(
+            rate_cover, TARGET_STEPS_PER_SECOND, at_least=True, unit="1/s"
         )
     with_all_pass(targets)
     return {
@@ -328,6 +387,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
             "timing": "perf_counter; 1 warm-up call; median/p95/p99 over repeated calls",
         },
         "results": results,
+        "cover": cover,
         "peer": peer,
         "dynamic": dynamic,
         "mujoco_peer": mujoco_peer,
@@ -344,8 +404,10 @@ def report(payload: dict[str, Any]) -> str:
         ", QUICK" if config["quick"] else ""
     )
     rows = []
+    cover = payload["cover"]
     for label, entry in (
         (f"OrientVectorEnv, N = {results['vector']['n']}", results["vector"]),
+        (f"OrientVectorEnv + cover (level {cover['cover_level']}), N = {cover['n']}", cover),
         ("OrientEnv, one step", results["single"]),
         (f"peer: SyncVectorEnv, N = {peer['n']}", peer),
     ):
@@ -379,16 +441,27 @@ def report(payload: dict[str, Any]) -> str:
         )
     table = format_table(["case", "median per call", "p95", "env steps/s"], rows)
     lines = ["Targets"]
-    record = payload["targets"].get("vector_steps_per_second")
-    if record is None:
+    if "vector_steps_per_second" not in payload["targets"]:
         lines.append("  (not evaluated in a quick run)")
-    else:
-        lines.append(
-            f"  {'PASS' if record['pass'] else 'FAIL'}  batched env steps/s (N = 4096): "
-            f"{format_rate(record['value'])} (>= {record['threshold']:,.0f})"
-        )
+    for key, what in (
+        ("vector_steps_per_second", ""),
+        ("vector_cover_steps_per_second", ", cover"),
+    ):
+        record = payload["targets"].get(key)
+        if record is not None:
+            lines.append(
+                f"  {'PASS' if record['pass'] else 'FAIL'}  batched env steps/s (N = 4096"
+                f"{what}): {format_rate(record['value'])} (>= {record['threshold']:,.0f})"
+            )
     ratio = peer["speed_ratio_ours_vs_peer"]
-    notes = [f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s"]
+    notes = [
+        f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s",
+        f"cover of level {cover['cover_level']}: filled in {cover['fill_s']:.1f} s, "
+        f"{cover['file_bytes'] / 1e6:.2f} MB, loaded in {cover['load_s']:.2f} s; the lookup "
+        f"settled {100 * cover['settled_fraction']:.1f}% of {cover['checks']:,} safety "
+        f"checks; {cover['speed_ratio_vs_without']:.2f}x the env steps/s without it; same "
+        f"states as without: {cover['same_states_as_without']}",
+    ]
     if mj["available"]:
         r = mj["speed_ratio_ours_vs_peer"]
         notes.append(

@@ -185,6 +185,9 @@ def test_quick_envs_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]
         assert entry["p95_s"] >= entry["median_s"] > 0
     assert data["results"]["vector"]["items"] == data["results"]["vector"]["n"] == 256
     assert data["peer"]["speed_ratio_ours_vs_peer"] > 0
+    cover = data["cover"]  # the batched step with a saved cover: the same states
+    assert cover["same_states_as_without"] is True and cover["n"] == 256
+    assert 0.0 < cover["settled_fraction"] <= 1.0 and cover["file_bytes"] > 0
     assert set(data["targets"]) == {"all_pass"}  # the 4096 target: full runs only
 
 

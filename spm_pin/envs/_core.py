@@ -19,6 +19,7 @@ import numpy.typing as npt
 from ..errors import InputError
 from ..kinematics import forward_kinematics
 from ..planning import SafeSet, safe_set_of
+from ._safe_lookup import SafeLookup
 from .settings import OrientSettings
 
 __all__ = ["OBSERVATION_SIZE", "OrientCore", "StepResult", "geodesic_angle"]
@@ -85,6 +86,10 @@ class OrientCore:
         self.design = settings.the_design
         self.limits = settings.the_limits
         self.safe_set: SafeSet = safe_set_of(self.design, settings.plan_settings)
+        #: The certified cells of ``settings.cover`` (None without one).
+        self.lookup: SafeLookup | None = None
+        if settings.cover is not None:
+            self.lookup = SafeLookup.from_file(self.safe_set, settings.cover)
         index = np.argwhere(self.safe_set.safe)
         #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
         self.vertices: FloatArray = np.stack(
@@ -169,13 +174,21 @@ class OrientCore:
     # ---------------------------------------------------------------- safety
     def safe(self, theta: FloatArray) -> BoolArray:
         """The guard's static checks at input angles (n, 3): joint limits, then the
-        safe set's checks (home assembly, singularity margin, dexterity, clearance)."""
+        safe set's checks (home assembly, singularity margin, dexterity, clearance).
+        With a cover (``settings.cover``), the states within the joint limits whose
+        gaps lie in a certified cell pass without the safe set's checks; the rest
+        are checked."""
         low = np.asarray(self.limits.theta_min)
         high = np.asarray(self.limits.theta_max)
         ok = np.all((theta >= low) & (theta <= high), axis=-1)
         result = np.zeros(theta.shape[0], dtype=bool)
-        if np.any(ok):
-            result[ok] = self.safe_set.evaluate(theta[ok]).safe
+        rows = np.flatnonzero(ok)
+        if rows.size and self.lookup is not None:
+            certified = self.lookup.covered(theta[rows])
+            result[rows[certified]] = True
+            rows = rows[~certified]
+        if rows.size:
+            result[rows] = self.safe_set.evaluate(theta[rows]).safe
         return result
 
     def _furthest_safe(self, theta: FloatArray, step: FloatArray) -> FloatArray:

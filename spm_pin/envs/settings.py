@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 from ..design import SPMDesign
 from ..errors import InputError
@@ -117,6 +118,14 @@ class OrientSettings:
         observation_noise: Standard deviation of the Gaussian noise added to the
             observed state (not to the goal); 0 turns it off.
         weights: The reward terms.
+        cover: Path of a saved :class:`~spm_pin.planning.SafeCover` of this design's
+            safe set with these limits (:meth:`~spm_pin.planning.SafeCover.save` of
+            ``SafeCover(safe_set_of(the_design, plan_settings))`` after ``fill``), or
+            None. With a cover, a state within the joint limits whose gaps lie in a
+            cell the cover certified safe passes the guard's checks without them
+            (a table lookup); every other state is checked as without a cover, so
+            the environment behaves the same, only faster. A file that is not such a
+            cover is refused when the environment is made.
     """
 
     design: SPMDesign | None = None
@@ -134,6 +143,7 @@ class OrientSettings:
     limit_acceleration: bool = True
     observation_noise: float = 0.0
     weights: RewardWeights = dataclasses.field(default_factory=RewardWeights)
+    cover: str | None = None
 
     def __post_init__(self) -> None:
         if self.design is not None and not isinstance(self.design, SPMDesign):
@@ -179,6 +189,16 @@ class OrientSettings:
                 value=goal,
             )
         object.__setattr__(self, "goal_theta", tuple(float(x) for x in goal))
+        if self.cover is not None:
+            cover: object = self.cover
+            path = os.fspath(cover) if isinstance(cover, str | os.PathLike) else None
+            if not isinstance(path, str) or not path:
+                raise InputError(
+                    f"cover must be None or the path of a saved SafeCover, got {cover!r}",
+                    argument="cover",
+                    value=cover,
+                )
+            object.__setattr__(self, "cover", path)
 
     @property
     def the_design(self) -> SPMDesign:

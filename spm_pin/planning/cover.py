@@ -113,6 +113,21 @@ class SafeCover:
         """How many cells are decided (covered or not), every level."""
         return int(np.count_nonzero(self._roots != _UNKNOWN)) + len(self._cells)
 
+    def covered_cells(self) -> tuple[npt.NDArray[np.bool_], IntArray]:
+        """The cells covered so far (every point of each is certified safe).
+
+        Returns:
+            (the covered root cells, a boolean (n, n) mask: root cell (i, j) spans
+            D12 from i a to (i + 1) a and D23 from j a to (j + 1) a, a the root step
+            in degrees; the covered finer cells, (m, 3) rows (level, i, j): the cell
+            of side a / 2**level with lower corner (i, j) times that side).
+        """
+        roots = self._roots == _COVERED
+        cells = np.array(
+            [key for key, covered in self._cells.items() if covered], dtype=np.int64
+        ).reshape(-1, 3)
+        return roots, cells
+
     # ------------------------------------------------------------------ vertices
     def _radius(self, level: int) -> float:
         return float(self.root / 2**level / math.sqrt(2.0))

@@ -1,0 +1,116 @@
+"""Certified cells of the gap plane as arrays: which of a batch of input angles a
+saved cover proves safe, without a check (:class:`SafeLookup`).
+
+A :class:`~spm_pin.planning.cover.SafeCover` certifies cells of the gap plane
+(D12, D23) safe at every point: each corner passes the safe set's checks with the
+singularity margin, the dexterity and the clearance margin (plus the yaw tolerance)
+raised by their Lipschitz bounds times the cell's radius. Input angles whose gaps lie
+in such a cell are safe for the safe set, whatever the turn about the axis. The
+lookup maps N input angles to their gaps, the gaps to the indices of the cell that
+holds them at each level, and the indices to the covered cells: a root cell by
+indexing a boolean mask, a finer cell by a binary search in the sorted keys of the
+covered cells of its level. A point on a grid line lies in the cells on both sides;
+the one below it is taken (both are closed, so either certifies it).
+
+The joint limits are not a property of the gaps: the caller checks them first.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InputError
+from ..planning import SafeCover, SafeSet
+
+__all__ = ["SafeLookup"]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+class SafeLookup:
+    """The covered cells of ``cover``, looked up for many input angles at once.
+
+    Args:
+        cover: A cover of the safe set (filled or loaded); its cells covered now are
+            taken (later changes to it are not seen).
+
+    Attributes:
+        safe_set: The cover's safe set.
+        asked: Input angles looked up so far.
+        settled: Of those, how many lay in a covered cell.
+    """
+
+    def __init__(self, cover: SafeCover) -> None:
+        self.safe_set: SafeSet = cover.safe
+        self.root_step_deg = cover.root
+        roots, cells = cover.covered_cells()
+        self._roots = roots
+        n = roots.shape[0]
+        # Per level with covered cells: (side [deg], lattice size, sorted keys i * size + j).
+        self._levels: list[tuple[float, int, npt.NDArray[np.int64]]] = []
+        for level in np.unique(cells[:, 0]).tolist():
+            rows = cells[cells[:, 0] == level]
+            size = n * 2**level
+            keys = np.sort(rows[:, 1] * size + rows[:, 2])
+            self._levels.append((self.root_step_deg / 2**level, size, keys))
+        self.asked = 0
+        self.settled = 0
+
+    @classmethod
+    def from_file(cls, safe_set: SafeSet, path: str | os.PathLike[str]) -> SafeLookup:
+        """The lookup of the cover saved at ``path`` (:meth:`SafeCover.save`) for
+        ``safe_set``'s design, settings and continuity bounds.
+
+        Raises:
+            InputError: ``path`` is not a saved cover, or one of another design,
+                other settings or other bounds.
+        """
+        cover = SafeCover(safe_set)
+        try:
+            cover.load(path)
+        except InputError as exc:
+            raise InputError(
+                f"cover: {exc} (make it for this design and these limits: SafeCover("
+                "safe_set_of(settings.the_design, settings.plan_settings)), fill, save)",
+                argument="cover",
+                value=os.fspath(path),
+            ) from exc
+        return cls(cover)
+
+    @property
+    def covered_root_cells(self) -> int:
+        """How many root cells are covered."""
+        return int(np.count_nonzero(self._roots))
+
+    @property
+    def covered_finer_cells(self) -> int:
+        """How many finer cells are covered (every level)."""
+        return sum(int(keys.size) for _, _, keys in self._levels)
+
+    def covered(self, theta: FloatArray) -> BoolArray:
+        """Whether each of the input angles (n, 3) [rad] has its gaps in a covered
+        cell (so it passes the safe set's checks), (n,)."""
+        d12, d23, _ = self.safe_set.gaps_of(theta)
+        n = self._roots.shape[0]
+        step = self.root_step_deg
+        i, j = np.floor(d12 / step), np.floor(d23 / step)
+        inside = (i >= 0.0) & (i < n) & (j >= 0.0) & (j < n)  # NaN: outside
+        result = np.zeros(d12.shape[0], dtype=bool)
+        rows = np.flatnonzero(inside)
+        result[rows] = self._roots[i[rows].astype(np.intp), j[rows].astype(np.intp)]
+        for side, size, keys in self._levels:
+            rows = rows[~result[rows]]
+            if rows.size == 0:
+                break
+            key = np.floor(d12[rows] / side).astype(np.int64) * size + np.floor(
+                d23[rows] / side
+            ).astype(np.int64)
+            at = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+            result[rows[keys[at] == key]] = True
+        self.asked += int(result.size)
+        self.settled += int(np.count_nonzero(result))
+        return result

@@ -1,0 +1,235 @@
+"""The certified-cell lookup of the environments' safety checks (spm_pin.envs._safe_lookup).
+
+A state whose gaps lie in a cell that a saved cover certified passes without the safe
+set's checks: on tens of thousands of seeded inputs (anywhere in the gap plane, in the
+covered cells next to cells that are not covered, near the boundary of the safe set,
+and where robots driven by random actions go) every state the lookup passes passes
+``SafeSet.evaluate`` too, so the environment's decisions are the same with the cover
+and without. Environments with and without a cover step alike, and a file that is not
+a cover of the design and limits is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gymnasium")
+
+import spm_pin as spm
+from spm_pin.envs import OrientSettings, OrientVectorEnv
+from spm_pin.envs._core import OrientCore
+from spm_pin.envs._safe_lookup import SafeLookup
+from spm_pin.errors import InputError
+from spm_pin.hardware.config import SafetyLimits
+from spm_pin.planning import SafeCover, SafeSet, safe_set_of
+
+#: Level the test cover is filled to (root cells and their halves).
+FILL_LEVEL = 1
+#: Random inputs of each kind checked against the safe set.
+SAMPLES = 8000
+
+
+@pytest.fixture(scope="module")
+def settings() -> OrientSettings:
+    return OrientSettings()
+
+
+@pytest.fixture(scope="module")
+def safe(settings: OrientSettings) -> SafeSet:
+    return safe_set_of(settings.the_design, settings.plan_settings)
+
+
+@pytest.fixture(scope="module")
+def cover_path(safe: SafeSet, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    cover = SafeCover(safe)
+    cover.fill(max_level=FILL_LEVEL)
+    path = tmp_path_factory.mktemp("cover") / "cover.npz"
+    cover.save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def lookup(safe: SafeSet, cover_path: Path) -> SafeLookup:
+    return SafeLookup.from_file(safe, cover_path)
+
+
+def _in_cells(
+    safe: SafeSet, cells: np.ndarray, side: float, rng: np.random.Generator
+) -> np.ndarray:
+    """One input (3,) [rad] per cell (m, 2) of ``side`` [deg]: uniform in the cell, at
+    a random turn about the axis."""
+    gaps = (cells + rng.uniform(0.0, 1.0, size=cells.shape)) * side
+    yaw = rng.uniform(-math.pi, math.pi, size=cells.shape[0])
+    return safe.theta_of(gaps[:, 0], gaps[:, 1], yaw)
+
+
+def _loaded(safe: SafeSet, path: Path) -> SafeCover:
+    cover = SafeCover(safe)
+    cover.load(path)
+    return cover
+
+
+def _covered_lattice(roots: np.ndarray, finer: np.ndarray, level: int) -> np.ndarray:
+    """The covered cells (:meth:`SafeCover.covered_cells`) on the lattice of ``level``,
+    a boolean mask."""
+    k = 2**level
+    mask = np.repeat(np.repeat(roots, k, axis=0), k, axis=1)
+    for lv, i, j in finer.tolist():
+        if lv <= level:
+            m = 2 ** (level - lv)
+            mask[i * m : (i + 1) * m, j * m : (j + 1) * m] = True
+    return mask
+
+
+def _inputs(safe: SafeSet, cover: SafeCover) -> dict[str, np.ndarray]:
+    """The seeded inputs (n, 3) [rad] of each kind."""
+    rng = np.random.default_rng(11)
+    roots, finer = cover.covered_cells()
+    step = cover.root
+    out: dict[str, np.ndarray] = {}
+    # Anywhere in the gap triangle.
+    d12 = rng.uniform(0.0, 360.0, SAMPLES)
+    d23 = rng.uniform(0.0, 360.0, SAMPLES)
+    keep = d12 + d23 < 360.0
+    out["plane"] = safe.theta_of(d12[keep], d23[keep], rng.uniform(-math.pi, math.pi, keep.sum()))
+    # The covered cells on the edge of the covered region (every level drawn on the
+    # finest lattice), and the cells within three of them, covered or not.
+    mask = _covered_lattice(roots, finer, FILL_LEVEL)
+    inner = mask.copy()
+    inner[1:-1, 1:-1] &= mask[:-2, 1:-1] & mask[2:, 1:-1] & mask[1:-1, :-2] & mask[1:-1, 2:]
+    edge = np.argwhere(mask & ~inner)
+    side = step / 2**FILL_LEVEL
+    pick = edge[rng.integers(len(edge), size=SAMPLES)]
+    out["covered_edge"] = _in_cells(safe, pick.astype(float), side, rng)
+    pick = edge[rng.integers(len(edge), size=SAMPLES)] + rng.integers(-3, 4, size=(SAMPLES, 2))
+    out["around_edge"] = _in_cells(safe, pick.astype(float), side, rng)
+    assert finer.shape[0] > 0
+    for level in np.unique(finer[:, 0]).tolist():
+        cells = finer[finer[:, 0] == level][:, 1:]
+        pick = cells[rng.integers(len(cells), size=SAMPLES // 2)]
+        out[f"covered_level_{level}"] = _in_cells(safe, pick.astype(float), step / 2**level, rng)
+    # Within two degrees of a safe grid vertex at the boundary of the safe set.
+    mask = safe.safe
+    edge_vertices = mask.copy()
+    edge_vertices[1:-1, 1:-1] &= ~(
+        mask[:-2, 1:-1] & mask[2:, 1:-1] & mask[1:-1, :-2] & mask[1:-1, 2:]
+    )
+    at = np.argwhere(edge_vertices)[rng.integers(int(edge_vertices.sum()), size=SAMPLES)]
+    h = safe.settings.grid_step_deg
+    out["boundary"] = safe.theta_of(
+        safe.d12[at[:, 0]] + rng.uniform(-h, h, SAMPLES),
+        safe.d23[at[:, 1]] + rng.uniform(-h, h, SAMPLES),
+        rng.uniform(-math.pi, math.pi, SAMPLES),
+    )
+    return out
+
+
+def test_the_lookup_passes_only_states_the_safe_set_passes(
+    safe: SafeSet, lookup: SafeLookup, cover_path: Path
+) -> None:
+    cover = _loaded(safe, cover_path)
+    total = 0
+    for kind, theta in _inputs(safe, cover).items():
+        covered = lookup.covered(theta)
+        total += theta.shape[0]
+        if kind.startswith("covered"):  # points inside covered cells
+            assert covered.all(), kind
+        else:
+            assert covered.any() and not covered.all(), kind
+        verdict = safe.evaluate(theta).safe
+        wrong = np.flatnonzero(covered & ~verdict)
+        assert wrong.size == 0, (
+            f"{kind}: the cover certifies {wrong.size} unsafe inputs, e.g. gaps "
+            f"{[float(g[wrong[0]]) for g in safe.gaps_of(theta[wrong[:1]])[:2]]} deg"
+        )
+    assert total >= 30_000
+    # The middle of every covered root cell is covered.
+    roots, _ = cover.covered_cells()
+    cells = np.argwhere(roots)
+    step = lookup.root_step_deg
+    middle = safe.theta_of((cells[:, 0] + 0.5) * step, (cells[:, 1] + 0.5) * step, 0.7)
+    assert lookup.covered(middle).all()
+    assert lookup.covered_root_cells == cells.shape[0]
+
+
+def test_the_safety_check_decides_the_same_with_and_without_a_cover(
+    safe: SafeSet, cover_path: Path
+) -> None:
+    """The environments' check (joint limits, then the safe set) with the lookup:
+    the same verdicts, and the joint limits still refuse a certified state."""
+    limits = SafetyLimits(theta_min=(-2.0, -2.0, -2.0), theta_max=(2.0, 2.0, 2.0))
+    plain = OrientCore(OrientSettings(limits=limits), 1)
+    fast = OrientCore(OrientSettings(limits=limits, cover=str(cover_path)), 1)
+    assert fast.lookup is not None and plain.lookup is None
+    rng = np.random.default_rng(5)
+    at = np.argwhere(safe.safe)[rng.integers(int(safe.safe.sum()), size=6000)]
+    theta = safe.theta_of(
+        safe.d12[at[:, 0]] + rng.uniform(-1.5, 1.5, at.shape[0]),
+        safe.d23[at[:, 1]] + rng.uniform(-1.5, 1.5, at.shape[0]),
+        rng.uniform(-2.5, 2.5, at.shape[0]),  # some beyond the joint limits
+    )
+    outside = np.any(np.abs(theta) > 2.0, axis=1)
+    assert 0.05 < outside.mean() < 0.5
+    expected = plain.safe(theta)
+    np.testing.assert_array_equal(fast.safe(theta), expected)
+    certified = fast.lookup.covered(theta)
+    assert np.any(certified & outside)  # certified gaps, yet refused by the limits
+    assert not np.any(expected & outside)
+
+
+def _rollout(num: int, seed: int, steps: int, **options: object) -> list[tuple[np.ndarray, ...]]:
+    env = OrientVectorEnv(num, **options)
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    record = [(obs,)]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(
+            rng.uniform(-1.0, 1.0, size=(num, 3)).astype(np.float32)
+        )
+        record.append((obs, reward, terminated, truncated, info["step_fraction"]))
+    if options.get("cover") is not None:
+        lookup = env.core.lookup
+        assert lookup is not None and lookup.settled > 0.3 * lookup.asked
+    return record
+
+
+@pytest.mark.parametrize(
+    ("seed", "safety", "goal"),
+    [(0, "clip", "random"), (1, "terminate", "random"), (2, "clip", "curriculum")],
+)
+def test_vector_envs_with_and_without_a_cover_step_alike(
+    cover_path: Path, seed: int, safety: str, goal: str
+) -> None:
+    options: dict[str, object] = {"safety": safety, "goal": goal, "max_steps": 120}
+    without = _rollout(24, seed, 250, **options)
+    with_cover = _rollout(24, seed, 250, cover=str(cover_path), **options)
+    for step, (a, b) in enumerate(zip(without, with_cover, strict=True)):
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(y, x, err_msg=f"step {step}")
+    clipped = np.concatenate([np.asarray(r[4]) for r in without[1:]])
+    assert np.any(clipped < 1.0)  # the safety check did decide something
+
+
+def test_a_bad_cover_or_one_of_another_design_is_refused(cover_path: Path, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a cover")
+    with pytest.raises(InputError, match=r"cover: .*not a saved cover") as info:
+        OrientVectorEnv(2, cover=str(bad))
+    assert info.value.argument == "cover"
+    with pytest.raises(InputError, match="not a saved cover"):
+        OrientVectorEnv(2, cover=str(tmp_path / "missing.npz"))
+    other = spm.SPMDesign.coaxial(50.0, 90.0, 90.0, name="wider")
+    path = tmp_path / "other.npz"
+    SafeCover(safe_set_of(other)).save(path)  # an (empty) cover of another design
+    with pytest.raises(InputError, match="another design"):
+        OrientVectorEnv(2, cover=str(path))
+    with pytest.raises(InputError, match="another design"):  # other thresholds
+        OrientVectorEnv(2, cover=str(cover_path), limits=SafetyLimits(min_dexterity=0.05))
+    for wrong in (3, "", b"cover.npz"):
+        with pytest.raises(InputError, match="cover must be None or the path"):
+            OrientSettings(cover=wrong)  # type: ignore[arg-type]
+    assert OrientSettings(cover=cover_path).cover == str(cover_path)  # type: ignore[arg-type]
