@@ -91,6 +91,25 @@ def prototype() -> spm.SPMDesign:
     return get_design("prototype")
 
 
+#: Level of the environments' test cover (root cells and their halves).
+ENV_COVER_LEVEL = 1
+
+
+@pytest.fixture(scope="session")
+def env_cover_path(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """A saved cover of the prototype's safe set with the environments' default
+    limits, filled to :data:`ENV_COVER_LEVEL` (made once per session)."""
+    from spm_pin.envs import OrientSettings
+    from spm_pin.planning import SafeCover, safe_set_of
+
+    settings = OrientSettings()
+    cover = SafeCover(safe_set_of(settings.the_design, settings.plan_settings))
+    cover.fill(max_level=ENV_COVER_LEVEL)
+    path = tmp_path_factory.mktemp("env-cover") / "cover.npz"
+    cover.save(path)
+    return str(path)
+
+
 # --------------------------------------------------------------------------- helpers
 def wrap(angle: np.ndarray) -> np.ndarray:
     """Angles into [-pi, pi)."""

@@ -188,6 +188,9 @@ def test_quick_envs_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     cover = data["cover"]  # the batched step with a saved cover: the same states
     assert cover["same_states_as_without"] is True and cover["n"] == 256
     assert 0.0 < cover["settled_fraction"] <= 1.0 and cover["file_bytes"] > 0
+    only = cover["cover_only"]  # the certified cells as the safe set: part of it
+    assert only["n"] == 256 and only["per_second"] > 0
+    assert 0.0 < only["safe_inputs_certified"] < 1.0 and 0.0 < only["safe_vertices_kept"] < 1.0
     assert set(data["targets"]) == {"all_pass"}  # the 4096 target: full runs only
 
 

@@ -19,6 +19,8 @@ import pytest
 
 pytest.importorskip("gymnasium")
 
+from conftest import ENV_COVER_LEVEL
+
 import spm_pin as spm
 from spm_pin.envs import OrientSettings, OrientVectorEnv
 from spm_pin.envs._core import OrientCore
@@ -28,7 +30,7 @@ from spm_pin.hardware.config import SafetyLimits
 from spm_pin.planning import SafeCover, SafeSet, safe_set_of
 
 #: Level the test cover is filled to (root cells and their halves).
-FILL_LEVEL = 1
+FILL_LEVEL = ENV_COVER_LEVEL
 #: Random inputs of each kind checked against the safe set.
 SAMPLES = 8000
 
@@ -44,12 +46,8 @@ def safe(settings: OrientSettings) -> SafeSet:
 
 
 @pytest.fixture(scope="module")
-def cover_path(safe: SafeSet, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    cover = SafeCover(safe)
-    cover.fill(max_level=FILL_LEVEL)
-    path = tmp_path_factory.mktemp("cover") / "cover.npz"
-    cover.save(path)
-    return path
+def cover_path(env_cover_path: str) -> Path:
+    return Path(env_cover_path)
 
 
 @pytest.fixture(scope="module")
@@ -181,8 +179,11 @@ def test_the_safety_check_decides_the_same_with_and_without_a_cover(
     assert not np.any(expected & outside)
 
 
-def _rollout(num: int, seed: int, steps: int, **options: object) -> list[tuple[np.ndarray, ...]]:
+def _rollout(
+    num: int, seed: int, steps: int, fused: bool = True, **options: object
+) -> list[tuple[np.ndarray, ...]]:
     env = OrientVectorEnv(num, **options)
+    env.core.fused = fused
     rng = np.random.default_rng(seed)
     obs, _ = env.reset(seed=seed)
     record = [(obs,)]
@@ -206,10 +207,19 @@ def test_vector_envs_with_and_without_a_cover_step_alike(
 ) -> None:
     options: dict[str, object] = {"safety": safety, "goal": goal, "max_steps": 120}
     without = _rollout(24, seed, 250, **options)
-    with_cover = _rollout(24, seed, 250, cover=str(cover_path), **options)
+    with_cover = _rollout(24, seed, 250, fused=False, cover=str(cover_path), **options)
     for step, (a, b) in enumerate(zip(without, with_cover, strict=True)):
         for x, y in zip(a, b, strict=True):
             np.testing.assert_array_equal(y, x, err_msg=f"step {step}")
+    # The compiled step (its own Newton for the rotation): the same decisions, the
+    # same numbers to rounding (the geodesic angle near a half turn amplifies it).
+    compiled = _rollout(24, seed, 250, cover=str(cover_path), **options)
+    for step, (a, c) in enumerate(zip(without, compiled, strict=True)):
+        np.testing.assert_allclose(c[0], a[0], atol=1e-6, err_msg=f"step {step}")
+        if step:
+            np.testing.assert_allclose(c[1], a[1], atol=1e-6, err_msg=f"step {step}")
+            for x, y in zip(a[2:], c[2:], strict=True):
+                np.testing.assert_array_equal(y, x, err_msg=f"step {step}")
     clipped = np.concatenate([np.asarray(r[4]) for r in without[1:]])
     assert np.any(clipped < 1.0)  # the safety check did decide something
 

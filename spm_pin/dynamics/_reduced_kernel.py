@@ -36,6 +36,7 @@ __all__ = [
     "STATUS_ROTATION",
     "STATUS_SINGULAR",
     "accelerations",
+    "home_rotation_of",
     "rotations",
     "step",
     "terms",
@@ -245,7 +246,24 @@ def _home_rotation(theta: Vec, R: Mat, k: Constants) -> tuple[bool, Mat]:
     tolerance and the home sign rule holds (every b_ii > sign_tol, det A of the sign
     it has at home and larger than sign_tol in size)."""
     u, w0, v0 = _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2])
-    cos_a2, home_sign, sign_tol, tol, iterations = k[13], k[16], k[17], k[19], k[20]
+    return home_rotation_of(theta, R, u, w0, v0, k[13], k[16], k[17], k[19], int(k[20]))
+
+
+def home_rotation_of(
+    theta: Vec,
+    R: Mat,
+    u: Mat,
+    w0: Mat,
+    v0: Mat,
+    cos_a2: float,
+    home_sign: float,
+    sign_tol: float,
+    tol: float,
+    iterations: int,
+) -> tuple[bool, Mat]:
+    """:func:`_home_rotation` with its constants given one by one: the design's rows
+    u, w0, v0, cos a2, the sign of det A at home, the sign tolerance, the closure
+    tolerance and the Newton iterations."""
     w = _proximal(theta, u, w0)
     R, residual = _newton(R, w, v0, cos_a2, 0.1 * tol, int(iterations))
     v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
@@ -640,6 +658,7 @@ KERNELS = (
     _proximal,
     _cofactors,
     _newton,
+    home_rotation_of,
     _home_rotation,
     _row_terms,
     _row_acceleration,

@@ -12,13 +12,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from .. import _jit
 from ..errors import InputError
 from ..kinematics import forward_kinematics
+from ..kinematics.fk import _SIGN_TOL
 from ..planning import SafeSet, safe_set_of
+from . import _kinematic_kernel
 from ._safe_lookup import SafeLookup
 from .settings import OrientSettings
 
@@ -32,6 +36,11 @@ IntArray = npt.NDArray[np.intp]
 OBSERVATION_SIZE = 21
 #: Observed entries that carry noise: all but the goal's six.
 _NOISY = np.r_[0:6, 12:21]
+#: Closure residual |w_i . R v_i0 - cos a2| the compiled step accepts from its
+#: warm-started rotation (as the reduced dynamics); a row above it takes numpy.
+KERNEL_CLOSURE_TOL = 1e-13
+#: Newton iterations of that warm start.
+KERNEL_NEWTON_ITERATIONS = 8
 
 
 def geodesic_angle(R: FloatArray, G: FloatArray) -> FloatArray:
@@ -90,11 +99,22 @@ class OrientCore:
         self.lookup: SafeLookup | None = None
         if settings.cover is not None:
             self.lookup = SafeLookup.from_file(self.safe_set, settings.cover)
+        #: The cover's certified cells are the safe set (``settings.cover_only``).
+        self.only = settings.cover_only
+        #: Step with the compiled kernel (:mod:`~spm_pin.envs._kinematic_kernel`) where
+        #: there is a cover and numba; False: always the numpy path.
+        self.fused = True
+        #: Rows the compiled kernel handed back to numpy so far.
+        self.handed_rows = 0
+        self._kernel: Any = None
+        self._kernel_args: tuple[Any, ...] = ()
         index = np.argwhere(self.safe_set.safe)
         #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
         self.vertices: FloatArray = np.stack(
             [self.safe_set.d12[index[:, 0]], self.safe_set.d23[index[:, 1]]], axis=-1
         )
+        if self.only:
+            self.vertices = self.vertices[self._in_cells(self.vertices)]
         if self.vertices.shape[0] == 0:
             raise InputError(
                 f"design {self.design.name!r} has no safe state with these limits",
@@ -123,6 +143,29 @@ class OrientCore:
                     argument="goal_theta",
                     value=settings.goal_theta,
                 )
+            if self.only and not self.safe(fixed[None])[0]:
+                raise InputError(
+                    f"goal_theta {np.degrees(fixed).round(3).tolist()} deg is safe, but "
+                    "not in a cell the cover certified (cover_only): fill the cover "
+                    "to a finer level, or choose a goal further from the boundary",
+                    argument="goal_theta",
+                    value=settings.goal_theta,
+                )
+
+    def _in_cells(self, gaps: FloatArray) -> BoolArray:
+        """Which gap-plane points (m, 2) [deg] lie inside certified cells: the four
+        cells about each (a point on a cell's side counts as in the cell below it,
+        so a turn about the axis, which moves the gaps by rounding, must not take it
+        to the cell beyond)."""
+        assert self.lookup is not None
+        asked, settled = self.lookup.asked, self.lookup.settled
+        inside = np.ones(gaps.shape[0], dtype=bool)
+        for a in (-1e-6, 1e-6):
+            for b in (-1e-6, 1e-6):
+                theta = self.safe_set.theta_of(gaps[:, 0] + a, gaps[:, 1] + b, 0.0)
+                inside &= self.lookup.covered(theta)
+        self.lookup.asked, self.lookup.settled = asked, settled
+        return inside
 
     # ---------------------------------------------------------------- episodes
     def _draw(self, rng: np.random.Generator) -> tuple[FloatArray, FloatArray]:
@@ -187,6 +230,8 @@ class OrientCore:
             certified = self.lookup.covered(theta[rows])
             result[rows[certified]] = True
             rows = rows[~certified]
+            if self.only:
+                return result
         if rows.size:
             result[rows] = self.safe_set.evaluate(theta[rows]).safe
         return result
@@ -215,7 +260,103 @@ class OrientCore:
         return command
 
     def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
-        """Step ``rows`` with normalised actions (n, 3) in [-1, 1]."""
+        """Step ``rows`` with normalised actions (n, 3) in [-1, 1]: by the compiled
+        kernel where it can (a cover, numba), the rest by numpy."""
+        kernel = self._step_kernel()
+        if kernel is None or rows.size == 0:
+            return self._step_numpy(rows, action)
+        n = rows.size
+        out = np.empty((n, 5))
+        handed = np.zeros(n, dtype=bool)
+        counts = np.zeros(2, dtype=np.int64)
+        kernel(
+            np.ascontiguousarray(rows, dtype=np.int64),
+            np.ascontiguousarray(action, dtype=np.float64),
+            self.theta,
+            self.speed,
+            self.R,
+            self.goal,
+            self.hold,
+            self.steps,
+            *self._kernel_args,
+            out,
+            handed,
+            counts,
+        )
+        assert self.lookup is not None
+        self.lookup.asked += int(counts[0])
+        self.lookup.settled += int(counts[1])
+        success = out[:, 3] != 0.0
+        unsafe = out[:, 4] != 0.0
+        terminated = success | unsafe
+        truncated = (self.steps[rows] >= self.settings.max_steps) & ~terminated
+        result = StepResult(out[:, 0], terminated, truncated, out[:, 1], out[:, 2], success, unsafe)
+        back = np.flatnonzero(handed)
+        self.handed_rows += int(back.size)
+        if back.size:
+            rest = self._step_numpy(rows[back], action[back])
+            for field in dataclasses.fields(StepResult):
+                getattr(result, field.name)[back] = getattr(rest, field.name)
+        return result
+
+    def _step_kernel(self) -> Any:
+        """The compiled :func:`~spm_pin.envs._kinematic_kernel.step`, or None (no cover,
+        no numba, ``fused`` off, or state arrays it does not take)."""
+        if not self.fused or self.lookup is None:
+            return None
+        kernel = self._kernel
+        if kernel is None:
+            if not _jit.available() or self.hold.dtype != np.int64:
+                self.fused = False
+                return None
+            kernel = self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["step"]
+            s, limits, design = self.settings, self.limits, self.design
+            w = s.weights
+            motion = np.array(
+                [
+                    limits.max_speed,
+                    limits.max_acceleration * s.control_period,
+                    s.control_period,
+                    s.tolerance,
+                ]
+            )
+            flags = np.array(
+                [
+                    int(s.limit_acceleration),
+                    int(s.safety == "clip"),
+                    s.clip_iterations,
+                    s.hold_steps,
+                    int(self.only),
+                ],
+                dtype=np.int64,
+            )
+            weights = np.array([w.orientation, w.effort, w.clip, w.success, w.unsafe])
+            low = np.array(limits.theta_min, dtype=float).reshape(3)
+            high = np.array(limits.theta_max, dtype=float).reshape(3)
+            rows = np.concatenate([design.u, design.w0, design.v0]).astype(float)
+            solve = np.array(
+                [
+                    math.cos(design.alpha2),
+                    float(np.sign(design.home_det_a)),
+                    float(_SIGN_TOL),
+                    KERNEL_CLOSURE_TOL,
+                    float(KERNEL_NEWTON_ITERATIONS),
+                ]
+            )
+            self._kernel_args = (
+                motion,
+                flags,
+                weights,
+                low,
+                high,
+                *self.lookup.arrays(),
+                np.ascontiguousarray(rows),
+                solve,
+            )
+        return kernel
+
+    def _step_numpy(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """:meth:`step_rows` in numpy."""
         s = self.settings
         a = np.clip(action, -1.0, 1.0)
         command = self.command(a, self.speed[rows])

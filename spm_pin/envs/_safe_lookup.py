@@ -29,6 +29,7 @@ __all__ = ["SafeLookup"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.int64]
 
 
 class SafeLookup:
@@ -80,6 +81,21 @@ class SafeLookup:
                 value=os.fspath(path),
             ) from exc
         return cls(cover)
+
+    def arrays(self) -> tuple[FloatArray, BoolArray, FloatArray, IntArray, IntArray, IntArray]:
+        """The cover as the arrays of :func:`spm_pin.envs._kinematic_kernel.covered`:
+        (eta_2 - eta_1, eta_3 - eta_2 [deg], root side [deg]), the covered root
+        cells, and per level its side [deg], lattice size and the start of its keys
+        in the sorted keys of every level, one level after the other."""
+        eta = np.degrees(np.asarray(self.safe_set.design.eta, dtype=float))
+        gaps = np.array([eta[1] - eta[0], eta[2] - eta[1], self.root_step_deg])
+        sides = np.array([side for side, _, _ in self._levels], dtype=float)
+        sizes = np.array([size for _, size, _ in self._levels], dtype=np.int64)
+        lengths = [keys.size for _, _, keys in self._levels]
+        starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        keys = np.concatenate([np.zeros(0, np.int64)] + [k for _, _, k in self._levels])
+        roots = np.ascontiguousarray(self._roots, dtype=np.bool_)
+        return gaps, roots, sides, sizes, starts, keys.astype(np.int64)
 
     @property
     def covered_root_cells(self) -> int:

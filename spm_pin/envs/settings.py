@@ -126,6 +126,15 @@ class OrientSettings:
             (a table lookup); every other state is checked as without a cover, so
             the environment behaves the same, only faster. A file that is not such a
             cover is refused when the environment is made.
+        cover_only: With ``cover``: the certified cells are the environment's safe
+            set. A state within the joint limits counts as safe when its gaps lie in
+            a certified cell, and as unsafe otherwise, without a check; starts and
+            goals are drawn from the safe vertices in certified cells. Conservative
+            (every certified cell is safe everywhere) and fast (no collision check
+            in a step), at the price of the thin band along the safe set's boundary
+            that the cover leaves out (its width shrinks with the cover's level:
+            see ``docs/envs.md``). False: the states outside certified cells are
+            checked.
     """
 
     design: SPMDesign | None = None
@@ -144,6 +153,7 @@ class OrientSettings:
     observation_noise: float = 0.0
     weights: RewardWeights = dataclasses.field(default_factory=RewardWeights)
     cover: str | None = None
+    cover_only: bool = False
 
     def __post_init__(self) -> None:
         if self.design is not None and not isinstance(self.design, SPMDesign):
@@ -199,6 +209,18 @@ class OrientSettings:
                     value=cover,
                 )
             object.__setattr__(self, "cover", path)
+        if not isinstance(self.cover_only, bool):
+            raise InputError(
+                f"cover_only must be True or False, got {self.cover_only!r}",
+                argument="cover_only",
+                value=self.cover_only,
+            )
+        if self.cover_only and self.cover is None:
+            raise InputError(
+                "cover_only needs a cover (the path of a saved SafeCover)",
+                argument="cover_only",
+                value=self.cover_only,
+            )
 
     @property
     def the_design(self) -> SPMDesign:
