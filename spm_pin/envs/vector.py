@@ -168,6 +168,7 @@ class OrientVectorEnv(VectorEnv[ObsArray, npt.NDArray[np.float32], npt.NDArray[A
         fraction = np.ones(n)
         success = np.zeros(n, dtype=bool)
         unsafe = np.zeros(n, dtype=bool)
+        error = np.zeros(n)
         restart = np.flatnonzero(self._autoreset)
         active = np.flatnonzero(~self._autoreset)
         # The order of the draws matches the single environment's: the reset rows
@@ -181,10 +182,12 @@ class OrientVectorEnv(VectorEnv[ObsArray, npt.NDArray[np.float32], npt.NDArray[A
             fraction[active] = result.fraction
             success[active] = result.success
             unsafe[active] = result.unsafe
+            error[active] = result.error
+        error[restart] = self.core.error(restart)
         obs = self.core.observe(self._all, self._rngs)
         self._autoreset = terminated | truncated
         stepped = ~np.isin(self._all, restart)
-        info = self._info(self.core.error(self._all), np.ones(n, dtype=bool))
+        info = self._info(error, np.ones(n, dtype=bool))
         info.update(
             step_fraction=fraction,
             _step_fraction=stepped,
