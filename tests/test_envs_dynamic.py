@@ -253,3 +253,20 @@ def test_position_actuation_follows_the_commanded_speed() -> None:
     speed = 0.5 * env.core.limits.max_speed
     np.testing.assert_allclose(info["theta_dot"], speed, rtol=1e-2)
     assert math.isclose(float(np.ptp(info["theta"])), 0.0, abs_tol=1e-6)  # a pure turn
+
+
+def test_the_platform_rotation_is_that_of_forward_kinematics() -> None:
+    """The rotation a step enters comes from Newton's method warm started at the
+    physics steps' rotations: it equals forward kinematics of the state entered, also
+    for robots the safety clip stopped part-way."""
+    env = OrientDynamicVectorEnv(16, max_steps=10_000)
+    env.reset(seed=4)
+    rng = np.random.default_rng(8)
+    clipped = 0
+    for _ in range(60):
+        _, _, _, _, info = env.step(rng.uniform(-1.0, 1.0, size=(16, 3)).astype(np.float32))
+        clipped += int(np.sum(info["step_fraction"] < 1.0))
+        fk = spm.forward_kinematics(env.core.theta, env.core.design)
+        assert fk.reachable.all()
+        np.testing.assert_allclose(env.core.R, fk.R, atol=1e-12)
+    assert clipped > 0

@@ -383,14 +383,15 @@ class OrientCore:
         speed: FloatArray,
         fraction: FloatArray,
         unsafe: BoolArray,
+        reference: FloatArray | None = None,
     ) -> StepResult:
         """Enter the (safe) state theta, speed (n, 3) in ``rows`` after a step with the
-        clipped actions ``a``: the platform rotation, the reward, the goal counter and
-        the ends (``fraction`` of the step taken, ``unsafe`` rows ended by the guard)."""
+        clipped actions ``a``: the platform rotation (:meth:`rotations`, warm started
+        from ``reference`` (n, 3, 3) where given), the reward, the goal counter and the
+        ends (``fraction`` of the step taken, ``unsafe`` rows ended by the guard)."""
         s = self.settings
         w = s.weights
-        fk = forward_kinematics(theta, self.design)
-        R = np.where(fk.reachable[:, None, None], fk.R, self.R[rows])
+        R = self.rotations(rows, theta, reference)
         error = geodesic_angle(R, self.goal[rows])
         hold = np.where(error <= s.tolerance, self.hold[rows] + 1, 0)
         success = hold >= s.hold_steps
@@ -410,6 +411,17 @@ class OrientCore:
         self.hold[rows] = hold
         self.steps[rows] = steps
         return StepResult(reward, terminated, truncated, error, fraction, success, unsafe)
+
+    def rotations(
+        self, rows: IntArray, theta: FloatArray, reference: FloatArray | None = None
+    ) -> FloatArray:
+        """The home-mode platform rotations (n, 3, 3) at the input angles theta (n, 3)
+        of ``rows`` (a row keeps its rotation where the home mode does not assemble):
+        forward kinematics (``reference`` is not used here; the dynamic core starts
+        Newton's method there)."""
+        fk = forward_kinematics(theta, self.design)
+        R: FloatArray = np.where(fk.reachable[:, None, None], fk.R, self.R[rows])
+        return R
 
     def error(self, rows: IntArray) -> FloatArray:
         """Orientation error of ``rows`` [rad]."""

@@ -354,7 +354,21 @@ class DynamicCore(OrientCore):
         self.torque[rows] = torque
         self.torque_speed[rows] = torque_speed
         self.servo_load[rows] = load
-        return self.settle(rows, a, theta, speed, fraction, unsafe)
+        return self.settle(rows, a, theta, speed, fraction, unsafe, reference=R)
+
+    def rotations(
+        self, rows: IntArray, theta: FloatArray, reference: FloatArray | None = None
+    ) -> FloatArray:
+        """:meth:`OrientCore.rotations`, by the reduced dynamics' warm start from
+        ``reference`` (the rotations of the physics steps, near theta) where given:
+        Newton's method from there (compiled with the dynamics), forward kinematics for
+        the rows it does not settle."""
+        if reference is None:
+            return super().rotations(rows, theta)
+        try:
+            return self.dynamics.rotation(theta, reference=reference)
+        except SPMError:  # a row without a home-mode assembly: it keeps its rotation
+            return super().rotations(rows, theta)
 
     def extra_info(self, rows: IntArray) -> dict[str, npt.NDArray[np.float64]]:
         """What the dynamic environments add to a step's info, per row: the real input
