@@ -72,7 +72,7 @@ class SafeLookup:
         """
         cover = SafeCover(safe_set)
         try:
-            cover.load(path)
+            cover.load(path, prepare=False)  # the cells alone: no collision check
         except InputError as exc:
             raise InputError(
                 f"cover: {exc} (make it for this design and these limits: SafeCover("

@@ -315,6 +315,14 @@ class SafeSet:
             return True, -1, certificate
         return self.certify_samples(theta)
 
+    def prepare_samples(self) -> None:
+        """Make the collision checks of the samples' ladder of raised margins now
+        (:func:`ladder_margins`; tens of milliseconds each, made on first use
+        otherwise), so that no certificate by samples pays for them later;
+        :meth:`SafeCover.prepare <spm_pin.planning.cover.SafeCover.prepare>` calls it."""
+        for _, margin in ladder_margins(self.settings, self.lipschitz, YAW_TOLERANCE_M):
+            self.checker.prepare(margin, include_fixed=False)
+
     def certify_samples(self, theta: npt.ArrayLike) -> tuple[bool, int, Evaluation]:
         """:meth:`certify` by the path's own samples alone (no cells)."""
         return certify_polyline(
@@ -385,6 +393,18 @@ def moving_radius(checker: Any) -> float:
     )
 
 
+def ladder_margins(
+    s: PlanSettings, lip: Lipschitz, extra_margin: float = 0.0
+) -> list[tuple[float, float]]:
+    """The ladder of :func:`evaluate_with_radius`: (radius [deg], the raised clearance
+    margin [m] that certifies it), largest first: half the check step, halved
+    :data:`LADDER_STEPS` - 1 times, then 0."""
+    base = s.margin + extra_margin
+    top = 0.5 * s.check_step_deg
+    levels = [top / 2.0**k for k in range(LADDER_STEPS)] + [0.0]
+    return [(level, base + lip.clearance * level) for level in levels]
+
+
 def evaluate_with_radius(
     checker: Any,
     s: PlanSettings,
@@ -411,17 +431,14 @@ def evaluate_with_radius(
     if checker.fixed_clearance < s.margin:  # parts that never move are too near
         colliding[:] = True
         radius[:] = -1.0
-    base = s.margin + extra_margin
     # A fixed ladder of radii (each margin's collision plan is built once).
-    top = 0.5 * s.check_step_deg
-    levels = [top / 2.0**k for k in range(LADDER_STEPS)] + [0.0]
+    ladder = ladder_margins(s, lip, extra_margin)
     for k in np.flatnonzero(radius >= 0.0):
         # The largest level the clearance covers (the parts whose distance never
         # changes, checked above, need none).
-        for level in levels:
+        for level, margin in ladder:
             if level > radius[k]:
                 continue
-            margin = base + lip.clearance * level
             if not checker.collisions(q[k], margin=margin, include_fixed=False):
                 radius[k] = level
                 break
