@@ -540,6 +540,31 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
         ),
         timed("single_step", "envs: Orient-v0 single env step", results["single"]),
     ]
+    cover = data.get("cover")
+    if cover is not None and "cover_only" in cover:  # runs with the cover_only rows
+        level = cover["cover_level"]
+        rows += [
+            timed(
+                "vector_step_cover",
+                f"envs: Orient-v0 batched step with a cover (level {level}), per env step "
+                f"(N = {cover['n']:,})",
+                cover,
+                per_item=True,
+                peer_name=f"SyncVectorEnv, N = {peer['n']}",
+                peer=peer,
+                targets=("vector_cover_steps_per_second",),
+            ),
+            timed(
+                "vector_step_cover_only",
+                f"envs: Orient-v0 batched step, cover_only (level {level}), per env step "
+                f"(N = {cover['cover_only']['n']:,})",
+                cover["cover_only"],
+                per_item=True,
+                peer_name=f"SyncVectorEnv, N = {peer['n']}",
+                peer=peer,
+                targets=("vector_cover_only_steps_per_second",),
+            ),
+        ]
     dynamic, mj = data.get("dynamic"), data.get("mujoco_peer")
     if dynamic is None:  # a run from before the dynamic environment's rows
         return rows
@@ -572,6 +597,29 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
             peer_name="MuJoCo env",
             peer=mj_single,
         ),
+    ]
+    if "vector_cover_only" in dynamic:  # runs with the cover_only rows
+        rows += [
+            timed(
+                "dynamic_vector_step_cover_only",
+                f"envs: OrientDynamic-v0 batched step, cover_only, per env step "
+                f"(N = {dynamic['vector_cover_only']['n']:,})",
+                dynamic["vector_cover_only"],
+                per_item=True,
+                peer_name=mj_name,
+                peer=mj_vector,
+                targets=("dynamic_vector_steps_per_second",),
+            ),
+            timed(
+                "dynamic_single_step_cover_only",
+                "envs: OrientDynamic-v0 single env step, cover_only",
+                dynamic["single_cover_only"],
+                peer_name="MuJoCo env",
+                peer=mj_single,
+                targets=("dynamic_single_step_s",),
+            ),
+        ]
+    rows += [
         valued(
             "dynamic_closure",
             "envs: OrientDynamic-v0 loop-closure error after the timed steps, max",

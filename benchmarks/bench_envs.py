@@ -19,7 +19,9 @@ What is measured (the prototype, random starts and goals, seeded random actions,
 4. ``dynamic``: one step of :class:`~spm_pin.envs.OrientDynamicVectorEnv` (position
    actuation, 20 physics steps of 1 ms per step) with N = 4096 robots and with the
    MuJoCo peer's N, and of :class:`~spm_pin.envs.OrientDynamicEnv`; the loop-closure
-   error of the batch's states after the timed steps.
+   error of the batch's states after the timed steps; the batch (N = 4096) and the
+   single environment again with the cover of section 7 as their safe set
+   (``cover_only``: no collision query in a step).
 5. ``mujoco_peer``: the same task built the usual way on MuJoCo
    (:class:`benchmarks._mujoco_env.MujocoOrientEnv`: the exported MJCF, position
    actuators, ``mj_step`` with ``nstep`` 20 at the same 1 ms step), one environment
@@ -40,7 +42,10 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    check in a step), and how much of the safe set the cells hold (random safe
    inputs, safe grid vertices).
 8. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
-   (N = 4096, one core), without a cover, with the cover, and with cover_only.
+   (N = 4096, one core), without a cover, with the cover, and with cover_only; the
+   dynamic environment's >= 200,000 env steps/s batched (N = 4096) and one env step
+   <= 20 us, both with cover_only (its fastest safety check; section 4 has them
+   with cover_only too, beside the rows without a cover).
 
 MuJoCo is optional: without it, ``mujoco_peer`` says so and the rest runs.
 """
@@ -98,6 +103,10 @@ FloatArray = npt.NDArray[np.float64]
 SEED = 20_250_228
 #: The project's target [env steps/s], batched N = 4096.
 TARGET_STEPS_PER_SECOND = 1_000_000.0
+#: The dynamic environment's targets (the issue's), judged with its fastest safety
+#: check (``cover_only``): batched env steps/s (N = 4096) and one env step [s].
+TARGET_DYNAMIC_STEPS_PER_SECOND = 200_000.0
+TARGET_DYNAMIC_SINGLE_S = 20e-6
 
 
 #: Physics step of the dynamic environment and of its peers [s].
@@ -171,7 +180,7 @@ def closure_error(theta: FloatArray, R: FloatArray, design: spm.SPMDesign) -> fl
     return float(np.abs(np.einsum("nki,nki->nk", w, v) - math.cos(design.alpha2)).max())
 
 
-def bench_cover(sizes: Sizes, plain: OrientVectorEnv) -> dict[str, Any]:
+def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, Any]:
     """``OrientVectorEnv`` with a cover filled to ``cover_level`` and saved, per env
     step, stepped with the same episodes and actions as ``plain`` (already stepped by
     :func:`time_call` with ``repeats``): the fill time, the file's size, the fraction
@@ -181,14 +190,12 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv) -> dict[str, Any]:
     start = time.perf_counter()
     cover.fill(max_level=sizes.cover_level)
     fill_s = time.perf_counter() - start
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "cover.npz"
-        cover.save(path)
-        size = path.stat().st_size
-        start = time.perf_counter()
-        env = OrientVectorEnv(sizes.batch, settings, cover=str(path))
-        load_s = time.perf_counter() - start
-        only = OrientVectorEnv(sizes.batch, settings, cover=str(path), cover_only=True)
+    cover.save(path)
+    size = path.stat().st_size
+    start = time.perf_counter()
+    env = OrientVectorEnv(sizes.batch, settings, cover=str(path))
+    load_s = time.perf_counter() - start
+    only = OrientVectorEnv(sizes.batch, settings, cover=str(path), cover_only=True)
     env.reset(seed=SEED)
     timed = time_call(_stepper(env, sizes.batch), repeats=sizes.repeats)
     lookup = env.core.lookup
@@ -231,21 +238,29 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv) -> dict[str, Any]:
     }
 
 
-def bench_dynamic(sizes: Sizes) -> dict[str, Any]:
+def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
     """``OrientDynamicVectorEnv`` at N = ``dynamic_batch`` and at the peer's N, and the
-    single ``OrientDynamicEnv``, per env step."""
+    single ``OrientDynamicEnv``, per env step; the batch at N = ``dynamic_batch`` and
+    the single env again with the saved ``cover`` as their safe set (``cover_only``)."""
     out: dict[str, Any] = {}
     closure = 0.0
-    for key, n in (("vector", sizes.dynamic_batch), ("vector_peer_n", sizes.peer_batch)):
-        env = OrientDynamicVectorEnv(n)
+    plain = OrientSettings()
+    only = OrientSettings(cover=str(cover), cover_only=True)
+    for key, n, settings in (
+        ("vector", sizes.dynamic_batch, plain),
+        ("vector_peer_n", sizes.peer_batch, plain),
+        ("vector_cover_only", sizes.dynamic_batch, only),
+    ):
+        env = OrientDynamicVectorEnv(n, settings)
         env.reset(seed=SEED)
         timed = time_call(_stepper(env, n), repeats=sizes.dynamic_repeats)
         out[key] = {**timed.timing.summary(items=n), "n": n}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
-    single = OrientDynamicEnv(max_steps=10**7)
-    single.reset(seed=SEED)
-    timed = time_call(_stepper(single, 0), repeats=sizes.dynamic_single_repeats)
-    out["single"] = {**timed.timing.summary(items=1), "n": 1}
+    for key, settings in (("single", plain), ("single_cover_only", only)):
+        single = OrientDynamicEnv(settings, max_steps=10**7)
+        single.reset(seed=SEED)
+        timed = time_call(_stepper(single, 0), repeats=sizes.dynamic_single_repeats)
+        out[key] = {**timed.timing.summary(items=1), "n": 1}
     out["closure_error"] = closure
     out["physics_steps_per_env_step"] = single.core.substeps
     out["actuation"] = single.physics.actuation
@@ -358,7 +373,9 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     vector.reset(seed=SEED)
     timed = time_call(_stepper(vector, sizes.batch), repeats=sizes.repeats)
     results["vector"] = {**timed.timing.summary(items=sizes.batch), "n": sizes.batch}
-    cover = bench_cover(sizes, vector)
+    folder = tempfile.TemporaryDirectory()
+    cover_path = Path(folder.name) / "cover.npz"
+    cover = bench_cover(sizes, vector, cover_path)
     cover["speed_ratio_vs_without"] = results["vector"]["median_s"] / cover["median_s"]
     single = OrientEnv(max_steps=10**7)
     single.reset(seed=SEED)
@@ -377,7 +394,8 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     peer["speed_ratio_ours_vs_peer"] = (
         results["vector"]["per_second"] / peer["per_second"] if peer["per_second"] else None
     )
-    dynamic = bench_dynamic(sizes)
+    dynamic = bench_dynamic(sizes, cover_path)
+    folder.cleanup()
     mujoco_peer = bench_mujoco_peer(sizes, vector.core.goal[:PEER_GOALS].copy())
     if mujoco_peer["available"]:
         mujoco_peer["speed_ratio_ours_vs_peer"] = {
@@ -401,6 +419,18 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
         )
         targets["vector_cover_only_steps_per_second"] = target(
             rate_only, TARGET_STEPS_PER_SECOND, at_least=True, unit="1/s"
+        )
+        targets["dynamic_vector_steps_per_second"] = target(
+            dynamic["vector_cover_only"]["per_second"] if full else float("nan"),
+            TARGET_DYNAMIC_STEPS_PER_SECOND,
+            at_least=True,
+            unit="1/s",
+        )
+        targets["dynamic_single_step_s"] = target(
+            dynamic["single_cover_only"]["median_s"],
+            TARGET_DYNAMIC_SINGLE_S,
+            at_least=False,
+            unit="s",
         )
     with_all_pass(targets)
     return {
@@ -459,7 +489,12 @@ def report(payload: dict[str, Any]) -> str:
     cases = [
         (f"OrientDynamicVectorEnv, N = {dynamic['vector']['n']}", dynamic["vector"]),
         (f"OrientDynamicVectorEnv, N = {dynamic['vector_peer_n']['n']}", dynamic["vector_peer_n"]),
+        (
+            f"OrientDynamicVectorEnv, cover_only, N = {dynamic['vector_cover_only']['n']}",
+            dynamic["vector_cover_only"],
+        ),
         ("OrientDynamicEnv, one step", dynamic["single"]),
+        ("OrientDynamicEnv, cover_only, one step", dynamic["single_cover_only"]),
     ]
     if mj["available"]:
         cases += [
@@ -483,6 +518,7 @@ def report(payload: dict[str, Any]) -> str:
         ("vector_steps_per_second", ""),
         ("vector_cover_steps_per_second", ", cover"),
         ("vector_cover_only_steps_per_second", ", cover_only"),
+        ("dynamic_vector_steps_per_second", ", dynamic, cover_only"),
     ):
         record = payload["targets"].get(key)
         if record is not None:
@@ -490,6 +526,12 @@ def report(payload: dict[str, Any]) -> str:
                 f"  {'PASS' if record['pass'] else 'FAIL'}  batched env steps/s (N = 4096"
                 f"{what}): {format_rate(record['value'])} (>= {record['threshold']:,.0f})"
             )
+    single = payload["targets"].get("dynamic_single_step_s")
+    if single is not None:
+        lines.append(
+            f"  {'PASS' if single['pass'] else 'FAIL'}  one dynamic env step (cover_only): "
+            f"{format_seconds(single['value'])} (<= {format_seconds(single['threshold'])})"
+        )
     ratio = peer["speed_ratio_ours_vs_peer"]
     notes = [
         f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s",
