@@ -349,7 +349,7 @@ class OrientCore:
                 weights,
                 low,
                 high,
-                *self.lookup.arrays(),
+                self.lookup.arrays(),
                 np.ascontiguousarray(rows),
                 solve,
             )

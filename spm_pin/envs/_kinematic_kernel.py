@@ -44,6 +44,8 @@ __all__ = ["CHECK", "KERNELS", "SAFE", "UNSAFE", "covered", "step"]
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
+#: A cover's arrays: (gaps, roots, sides, sizes, starts, keys), see :func:`covered`.
+Cover = tuple[FloatArray, BoolArray, FloatArray, IntArray, IntArray, IntArray]
 
 #: Verdicts of :func:`_verdict`: outside the joint limits, or (cover only) outside
 #: the certified cells.
@@ -68,36 +70,28 @@ def _search(keys: IntArray, start: int, end: int, key: int) -> bool:
     return low < end and keys[low] == key
 
 
-def covered(
-    t0: float,
-    t1: float,
-    t2: float,
-    gaps: FloatArray,
-    roots: BoolArray,
-    sides: FloatArray,
-    sizes: IntArray,
-    starts: IntArray,
-    keys: IntArray,
-) -> bool:
+def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
     """Whether the gaps of the input (t0, t1, t2) [rad] lie in a certified cell.
 
     Args:
-        gaps: (eta_2 - eta_1, eta_3 - eta_2 [deg], side of the root cells [deg]).
-        roots: Covered root cells (n, n).
-        sides, sizes: Per level with covered cells: the cells' side [deg] and the
-            lattice size (keys are i * size + j).
-        starts: (levels + 1,): level m's keys are ``keys[starts[m]:starts[m + 1]]``.
-        keys: The sorted keys of every level, one after the other.
+        cover: (gaps, roots, sides, sizes, starts, keys):
+            gaps: (eta_2 - eta_1, eta_3 - eta_2 [deg], side of the root cells [deg]);
+            roots: the covered root cells (n, n);
+            sides, sizes: per level with covered cells, the cells' side [deg] and the
+            lattice size (keys are i * size + j);
+            starts: (levels + 1,), level m's keys are ``keys[starts[m]:starts[m + 1]]``;
+            keys: the sorted keys of every level, one after the other.
     """
+    gaps, roots, sides, sizes, starts, keys = cover
     deg0, deg1, deg2 = t0 * _DEGREES, t1 * _DEGREES, t2 * _DEGREES
     d12 = (gaps[0] - (deg1 - deg0)) % 360.0
     d23 = (gaps[1] - (deg2 - deg1)) % 360.0
     n = roots.shape[0]
-    i = math.floor(d12 / gaps[2])
-    j = math.floor(d23 / gaps[2])
-    if not (i >= 0.0 and i < n and j >= 0.0 and j < n):  # NaN: outside
+    a = d12 / gaps[2]
+    b = d23 / gaps[2]
+    if not (a >= 0.0 and a < n and b >= 0.0 and b < n):  # NaN: outside
         return False
-    if roots[int(i), int(j)]:
+    if roots[int(a), int(b)]:  # int() of a number >= 0: its floor
         return True
     for level in range(sides.shape[0]):
         side = sides[level]
@@ -107,23 +101,12 @@ def covered(
     return False
 
 
-def _verdict(
-    x: Vec,
-    low: FloatArray,
-    high: FloatArray,
-    only: bool,
-    gaps: FloatArray,
-    roots: BoolArray,
-    sides: FloatArray,
-    sizes: IntArray,
-    starts: IntArray,
-    keys: IntArray,
-) -> int:
+def _verdict(x: Vec, low: FloatArray, high: FloatArray, only: bool, cover: Cover) -> int:
     """:data:`UNSAFE`, :data:`SAFE` or :data:`CHECK` for the input x [rad]."""
     for m in range(3):
         if not (x[m] >= low[m] and x[m] <= high[m]):
             return UNSAFE
-    if covered(x[0], x[1], x[2], gaps, roots, sides, sizes, starts, keys):
+    if covered(x[0], x[1], x[2], cover):
         return SAFE
     return UNSAFE if only else CHECK
 
@@ -147,12 +130,7 @@ def step(
     weights: FloatArray,
     low: FloatArray,
     high: FloatArray,
-    gaps: FloatArray,
-    roots: BoolArray,
-    sides: FloatArray,
-    sizes: IntArray,
-    starts: IntArray,
-    keys: IntArray,
+    cover: Cover,
     design: FloatArray,
     solve: FloatArray,
     out: FloatArray,
@@ -173,7 +151,7 @@ def step(
             hold steps, cover only).
         weights: (orientation, effort, clip, success, unsafe).
         low, high: The joint limits [rad] (3,).
-        gaps, roots, sides, sizes, starts, keys: The cover (:func:`covered`).
+        cover: The cover's arrays (:func:`covered`).
         design: (9, 3): the rows u, w0, v0 of the design.
         solve: (cos a2, sign of det A at home, sign tolerance, closure tolerance,
             Newton iterations).
@@ -213,9 +191,7 @@ def step(
             c2 = _clip(c2, speed[r, 2] - dv, speed[r, 2] + dv)
         t0, t1, t2 = theta[r, 0], theta[r, 1], theta[r, 2]
         s0, s1, s2 = c0 * period, c1 * period, c2 * period
-        verdict = _verdict(
-            (t0 + s0, t1 + s1, t2 + s2), low, high, only, gaps, roots, sides, sizes, starts, keys
-        )
+        verdict = _verdict((t0 + s0, t1 + s1, t2 + s2), low, high, only, cover)
         asked, settled = 1, int(verdict == SAFE)
         fraction, unsafe = 1.0, False
         if verdict == UNSAFE:
@@ -224,18 +200,8 @@ def step(
                 lo, hi = 0.0, 1.0
                 for _ in range(iterations):
                     middle = 0.5 * (lo + hi)
-                    verdict = _verdict(
-                        (t0 + middle * s0, t1 + middle * s1, t2 + middle * s2),
-                        low,
-                        high,
-                        only,
-                        gaps,
-                        roots,
-                        sides,
-                        sizes,
-                        starts,
-                        keys,
-                    )
+                    x = (t0 + middle * s0, t1 + middle * s1, t2 + middle * s2)
+                    verdict = _verdict(x, low, high, only, cover)
                     asked += 1
                     settled += int(verdict == SAFE)
                     if verdict == CHECK:
