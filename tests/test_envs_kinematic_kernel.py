@@ -176,3 +176,24 @@ def test_cover_only_settings_are_checked(env_cover_path: str) -> None:
     OrientVectorEnv(1, cover=env_cover_path, goal="fixed", goal_theta=goal)  # checked: fine
     with pytest.raises(InputError, match="not in a cell the cover certified"):
         OrientVectorEnv(1, cover=env_cover_path, cover_only=True, goal="fixed", goal_theta=goal)
+
+
+def test_cover_only_refuses_a_home_start_or_a_cover_without_cells(
+    env_cover_path: str, tmp_path: Any
+) -> None:
+    from spm_pin.hardware.config import SafetyLimits
+    from spm_pin.planning import SafeCover
+
+    env = OrientVectorEnv(2, cover=env_cover_path, cover_only=True, start="home")
+    env.reset(seed=0)
+    np.testing.assert_array_equal(env.core.theta, 0.0)  # home lies in a certified cell
+    beyond = SafetyLimits(theta_min=(0.1, -3.0, -3.0), theta_max=(3.0, 3.0, 3.0))
+    with pytest.raises(
+        InputError, match="start 'home' is beyond the joint limits or not in a cell"
+    ):
+        OrientVectorEnv(1, cover=env_cover_path, cover_only=True, start="home", limits=beyond)
+    settings = OrientSettings()
+    empty = tmp_path / "empty.npz"
+    SafeCover(safe_set_of(settings.the_design, settings.plan_settings)).save(empty)
+    with pytest.raises(InputError, match="in the cells the cover certified"):
+        OrientVectorEnv(1, cover=str(empty), cover_only=True)

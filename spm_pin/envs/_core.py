@@ -115,9 +115,18 @@ class OrientCore:
         )
         if self.only:
             self.vertices = self.vertices[self._in_cells(self.vertices)]
+            if settings.start == "home" and not self.safe(np.zeros((1, 3)))[0]:
+                raise InputError(
+                    "start 'home' is beyond the joint limits or not in a cell the cover "
+                    "certified (cover_only): fill the cover to a finer level, or start "
+                    "at random",
+                    argument="start",
+                    value=settings.start,
+                )
         if self.vertices.shape[0] == 0:
             raise InputError(
-                f"design {self.design.name!r} has no safe state with these limits",
+                f"design {self.design.name!r} has no safe state with these limits"
+                + (" in the cells the cover certified (cover_only)" if self.only else ""),
                 argument="limits",
                 value=self.limits,
             )
