@@ -243,3 +243,23 @@ def test_a_bad_cover_or_one_of_another_design_is_refused(cover_path: Path, tmp_p
         with pytest.raises(InputError, match="cover must be None or the path"):
             OrientSettings(cover=wrong)  # type: ignore[arg-type]
     assert OrientSettings(cover=cover_path).cover == str(cover_path)  # type: ignore[arg-type]
+
+
+def test_the_compiled_lookup_answers_as_numpy(safe: SafeSet, lookup: SafeLookup) -> None:
+    """Random inputs and inputs whose gaps lie on the grid lines of the finest cells
+    (where a point belongs to the cell below it): the same answers, one by one."""
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(21)
+    anywhere = rng.uniform(-math.pi, math.pi, size=(SAMPLES, 3))
+    side = 0.5 / 2**FILL_LEVEL
+    lines = rng.integers(0, int(360 / side), size=(SAMPLES, 2)) * side
+    on_lines = safe.theta_of(lines[:, 0], lines[:, 1], rng.uniform(-math.pi, math.pi, SAMPLES))
+    for theta in (anywhere, on_lines, anywhere[:1]):
+        lookup.compiled = True
+        compiled = lookup.covered(theta)
+        assert lookup._kernel is not None  # the compiled path ran
+        lookup.compiled = False
+        np.testing.assert_array_equal(compiled, lookup.covered(theta))
+        if theta.shape[0] > 1:
+            assert np.any(compiled) and not np.all(compiled)
+    lookup.compiled = True

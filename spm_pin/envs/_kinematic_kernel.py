@@ -39,7 +39,7 @@ import numpy.typing as npt
 from ..dynamics._reduced_kernel import KERNELS as REDUCED_KERNELS
 from ..dynamics._reduced_kernel import Mat, Vec, home_rotation_of
 
-__all__ = ["CHECK", "KERNELS", "SAFE", "UNSAFE", "covered", "step"]
+__all__ = ["CHECK", "KERNELS", "SAFE", "UNSAFE", "covered", "covered_rows", "step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -99,6 +99,12 @@ def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
         if _search(keys, starts[level], starts[level + 1], key):
             return True
     return False
+
+
+def covered_rows(theta: FloatArray, cover: Cover, out: BoolArray) -> None:
+    """:func:`covered` of each input (n, 3) [rad] into ``out`` (n,)."""
+    for m in range(theta.shape[0]):
+        out[m] = covered(theta[m, 0], theta[m, 1], theta[m, 2], cover)
 
 
 def _verdict(x: Vec, low: FloatArray, high: FloatArray, only: bool, cover: Cover) -> int:
@@ -263,4 +269,4 @@ def step(
 
 
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
-KERNELS = (*REDUCED_KERNELS, _search, covered, _verdict, _clip, step)
+KERNELS = (*REDUCED_KERNELS, _search, covered, covered_rows, _verdict, _clip, step)

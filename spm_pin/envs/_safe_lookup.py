@@ -18,6 +18,7 @@ The joint limits are not a property of the gaps: the caller checks them first.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -60,6 +61,11 @@ class SafeLookup:
             self._levels.append((self.root_step_deg / 2**level, size, keys))
         self.asked = 0
         self.settled = 0
+        #: Look up with the compiled kernel where numba is installed (the same
+        #: answers as numpy); False: numpy always.
+        self.compiled = True
+        self._kernel: Any = None
+        self._arrays: Any = None
 
     @classmethod
     def from_file(cls, safe_set: SafeSet, path: str | os.PathLike[str]) -> SafeLookup:
@@ -110,6 +116,33 @@ class SafeLookup:
     def covered(self, theta: FloatArray) -> BoolArray:
         """Whether each of the input angles (n, 3) [rad] has its gaps in a covered
         cell (so it passes the safe set's checks), (n,)."""
+        kernel = self._covered_kernel()
+        if kernel is not None:
+            angles = np.ascontiguousarray(theta, dtype=np.float64).reshape(-1, 3)
+            found = np.empty(angles.shape[0], dtype=bool)
+            kernel(angles, self._arrays, found)
+            self.asked += int(found.size)
+            self.settled += int(np.count_nonzero(found))
+            return found
+        return self._covered_numpy(theta)
+
+    def _covered_kernel(self) -> Any:
+        """The compiled :func:`~spm_pin.envs._kinematic_kernel.covered_rows`, or None."""
+        if not self.compiled:
+            return None
+        if self._kernel is None:
+            from .. import _jit
+            from . import _kinematic_kernel
+
+            if not _jit.available():
+                self.compiled = False
+                return None
+            self._arrays = self.arrays()
+            self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["covered_rows"]
+        return self._kernel
+
+    def _covered_numpy(self, theta: FloatArray) -> BoolArray:
+        """:meth:`covered` in numpy."""
         d12, d23, _ = self.safe_set.gaps_of(theta)
         n = self._roots.shape[0]
         step = self.root_step_deg
