@@ -497,6 +497,18 @@ def figures_remote(data: Mapping[str, Any]) -> list[Figure]:
                 targets=targets,
             )
         )
+    slow = results.get("stream_1000_readers_100")
+    if slow is not None and "latency" in slow:  # runs with readers at a display's rate
+        rows.append(
+            timed(
+                "target_1000hz_readers_100hz",
+                f"remote: WS target answered, 1,000 Hz, {slow['readers']['connections']} "
+                "readers at 100 Hz",
+                slow["latency"],
+                peer_name="backend.command() in process",
+                peer=peer["command_1000"],
+            )
+        )
     fast = results["stream_1000"]
     rows.append(
         valued(

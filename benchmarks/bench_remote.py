@@ -21,7 +21,9 @@ that client and server do not share an interpreter lock. What is measured:
    the state pushed at the same rate. ``stream_1000_untimed`` sends the same goals
    at 1 kHz without ``t``: the server then times them by their arrival, and network
    jitter makes some look too fast (they are refused: counted, not an error of the
-   benchmark). For each target the time from
+   benchmark). ``stream_1000_readers_100`` sends the timed goals at 1 kHz again, with
+   the 10 readers at 100 Hz (a display's or a logger's rate; reported beside the
+   target, which is judged with the readers at 1 kHz). For each target the time from
    its send to its answer (``ack``, ``refused`` or ``error``, matched by ``seq``);
    targets without an answer when the run ends are ``lost``
    (``acks + refused + errors + lost == sent``). For the pushes: how many each
@@ -85,6 +87,10 @@ TARGET_P99_S = 5e-3
 TARGET_RATE = 1000.0
 #: Answered targets per second at TARGET_RATE that count as sustained [Hz].
 TARGET_SUSTAINED = 990.0
+#: The readers' rate of the last stream [Hz]: the controlling client at 1 kHz beside
+#: readers at a display's or a logger's rate (reported; the target is judged with the
+#: readers at 1 kHz).
+SLOW_READERS_HZ = 100.0
 #: Stream rates of the controlling client and the readers [Hz].
 RATES = (100.0, 1000.0)
 #: The streamed motion: from rest, this acceleration [deg/s^2] up to this speed [deg/s]
@@ -323,6 +329,7 @@ def bench_stream(
     pushed = sum(c["pushed"] for c in counts)
     result["readers"] = {
         "connections": readers,
+        "rate_hz": reader_rate or rate,
         "per_connection": counts,
         "received": received,
         "pushed": pushed,
@@ -427,6 +434,15 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             timed=False,
         )
         results[f"stream_{TARGET_RATE:g}_untimed"] = untimed
+        results[f"stream_{TARGET_RATE:g}_readers_{SLOW_READERS_HZ:g}"] = bench_stream(
+            base,
+            ws_url,
+            TARGET_RATE,
+            float(sizes["seconds"]),
+            int(sizes["readers"]),
+            np.asarray(untimed["final_deg"]),
+            reader_rate=SLOW_READERS_HZ,
+        )
     finally:
         process.terminate()  # SIGTERM: uvicorn shuts down, the twin stops
         process.join(30)
@@ -500,9 +516,16 @@ def report(payload: dict[str, Any]) -> str:
         for name in ("command", "move"):
             entry = peer[f"{name}_{rate:g}"]
             rows.append(row(f"in process: backend.{name}(), {rate:g} Hz", entry, entry["n"]))
+    slow = results.get(f"stream_{TARGET_RATE:g}_readers_{SLOW_READERS_HZ:g}")
+    if slow is not None and "latency" in slow:
+        label = f"WS target at {TARGET_RATE:g} Hz, readers at {SLOW_READERS_HZ:g} Hz, answer"
+        rows.append(row(label, slow["latency"], slow["sent"]))
     table = format_table(["case", "n", "median", "p95", "p99"], rows)
     lines = []
-    for key in [f"stream_{rate:g}" for rate in RATES] + [f"stream_{TARGET_RATE:g}_untimed"]:
+    for key in [f"stream_{rate:g}" for rate in RATES] + [
+        f"stream_{TARGET_RATE:g}_untimed",
+        f"stream_{TARGET_RATE:g}_readers_{SLOW_READERS_HZ:g}",
+    ]:
         if key not in results:
             continue
         s = results[key]
@@ -513,7 +536,8 @@ def report(payload: dict[str, Any]) -> str:
             f"{s['rate_hz']:g} Hz {timing}: sent {s['sent']} at "
             f"{format_rate(s['send_rate_hz'])}, answered at "
             f"{format_rate(s['answer_rate_hz'])}: {s['acks']} acks, {s['refused']} refused, "
-            f"{s['errors']} errors, {s['lost']} lost (why: {why}); {r['connections']} readers: "
+            f"{s['errors']} errors, {s['lost']} lost (why: {why}); {r['connections']} readers "
+            f"at {r.get('rate_hz', s['rate_hz']):g} Hz: "
             f"{format_count(r['received'])} states received of {format_count(r['pushed'])} "
             f"pushed ({format_rate(r['received_per_second_each'])} each), "
             f"{format_count(r['dropped'])} ticks dropped by the server"

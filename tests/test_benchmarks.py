@@ -510,11 +510,12 @@ def test_quick_remote_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert data["benchmark"] == "remote" and data["config"]["quick"] is True
     assert {"fastapi", "uvicorn", "httpx", "websockets"} <= set(data["machine"]["packages"])
     results = data["results"]
-    assert set(results) == {"get_state", "stream_100", "stream_1000", "stream_1000_untimed", "peer"}
+    streams = ("stream_100", "stream_1000", "stream_1000_untimed", "stream_1000_readers_100")
+    assert set(results) == {"get_state", "peer", *streams}
     assert results["get_state"]["backend"] == "kinematic"
     assert results["get_state"]["p95_s"] >= results["get_state"]["median_s"] > 0
     readers = data["config"]["sizes"]["readers"]
-    for name in ("stream_100", "stream_1000", "stream_1000_untimed"):
+    for name in streams:
         stream = results[name]
         assert stream["timed"] is (name != "stream_1000_untimed")
         if stream["timed"]:  # a motion within the limits, timed by its own clock
@@ -528,6 +529,7 @@ def test_quick_remote_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[st
             assert stream["latency"]["p99_s"] >= stream["latency"]["median_s"] > 0, name
         pushes = stream["readers"]
         assert pushes["connections"] == len(pushes["per_connection"]) == readers, name
+        assert pushes["rate_hz"] == (100 if name.endswith("readers_100") else stream["rate_hz"])
         assert pushes["received"] == sum(c["received"] for c in pushes["per_connection"])
         assert pushes["pushed"] - pushes["received"] == pushes["not_received"] >= 0, name
         for connection in pushes["per_connection"]:
