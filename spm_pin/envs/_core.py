@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _jit
+from ..dynamics.reduced import _NEWTON_ITERATIONS, REDUCED_CLOSURE_TOL
 from ..errors import InputError
 from ..kinematics import forward_kinematics
 from ..kinematics.fk import _SIGN_TOL
@@ -36,11 +37,6 @@ IntArray = npt.NDArray[np.intp]
 OBSERVATION_SIZE = 21
 #: Observed entries that carry noise: all but the goal's six.
 _NOISY = np.r_[0:6, 12:21]
-#: Closure residual |w_i . R v_i0 - cos a2| the compiled step accepts from its
-#: warm-started rotation (as the reduced dynamics); a row above it takes numpy.
-KERNEL_CLOSURE_TOL = 1e-13
-#: Newton iterations of that warm start.
-KERNEL_NEWTON_ITERATIONS = 8
 
 
 def geodesic_angle(R: FloatArray, G: FloatArray) -> FloatArray:
@@ -348,8 +344,8 @@ class OrientCore:
                     math.cos(design.alpha2),
                     float(np.sign(design.home_det_a)),
                     float(_SIGN_TOL),
-                    KERNEL_CLOSURE_TOL,
-                    float(KERNEL_NEWTON_ITERATIONS),
+                    REDUCED_CLOSURE_TOL,  # the reduced dynamics' warm start, as it is
+                    float(_NEWTON_ITERATIONS),
                 ]
             )
             self._kernel_args = (
