@@ -24,9 +24,9 @@ import threading
 import types
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
-__all__ = ["ENV_VARIABLE", "available", "kernels", "ready"]
+__all__ = ["ENV_VARIABLE", "available", "inline", "kernels", "ready"]
 
 #: Set to ``0`` to run the Python kernels even where numba is installed.
 ENV_VARIABLE = "SPM_PIN_JIT"
@@ -36,6 +36,24 @@ _cache: dict[tuple[Callable[..., Any], ...], dict[str, Callable[..., Any]]] = {}
 #: Compiled twins by the id of their Python function (kept alive by ``_originals``).
 _compiled: dict[int, Callable[..., Any]] = {}
 _originals: list[Callable[..., Any]] = []
+#: The attribute :func:`inline` sets on a function.
+_INLINE = "_spm_pin_jit_inline"
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def inline(function: F) -> F:
+    """Mark a kernel to be inlined into its compiled callers (numba's
+    ``inline="always"``), returned unchanged.
+
+    For a kernel that takes arrays (a tuple of constants, say): a compiled call passes
+    each array with its reference count raised and lowered, which for a small kernel
+    costs more than its arithmetic. Inlining changes no operation, so no bit. Mark
+    only the few callees on a hot path: each inlined call is compiled again in every
+    caller.
+    """
+    setattr(function, _INLINE, True)
+    return function
 
 
 def _numba() -> Any | None:
@@ -104,7 +122,8 @@ def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
     clone.__module__ = function.__module__
     with warnings.catch_warnings():  # a read-only install cannot cache: fine
         warnings.simplefilter("ignore", numba.NumbaWarning)
-        compiled: Callable[..., Any] = numba.njit(cache=True)(clone)
+        how = "always" if getattr(function, _INLINE, False) else "never"
+        compiled: Callable[..., Any] = numba.njit(cache=True, inline=how)(clone)
     return compiled
 
 

@@ -85,6 +85,34 @@ def test_kernels_are_compiled_and_switched_off_by_the_argument() -> None:
 
 
 @pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("integrator", ["euler", "rk4"])
+def test_compiled_steps_are_the_python_kernels_bits(kind: str, integrator: str) -> None:
+    # The hot callees are inlined into the compiled kernels (_jit.inline): the same
+    # operations, so the Python kernels' bits.
+    for name in ("_home_rotation", "_row_terms", "_row_acceleration", "_row_step"):
+        assert getattr(getattr(_reduced_kernel, name), _jit._INLINE, False), name
+    fast, _ = _pair(kind)
+    table = fast._kernels()
+    assert table is not None
+    k = fast._constants()
+    theta, theta_dot, tau = _states(12, SEED + 7)
+    reference = fast.rotation(theta + 0.01)
+    outputs = []
+    for step in (table["step"], _reduced_kernel.step):
+        out = [np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3, 3))]
+        status = step(theta, theta_dot, tau, reference, 1e-3, integrator == "rk4", k, *out)
+        assert status == _reduced_kernel.STATUS_OK
+        acc, det = np.empty((12, 3)), np.empty(12)
+        singular = (
+            table["accelerations"] if step is table["step"] else _reduced_kernel.accelerations
+        )(theta, theta_dot, tau, out[3], k, acc, det)
+        assert not singular.any()
+        outputs.append([*out, acc, det])
+    for a, b in zip(*outputs, strict=True):
+        assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("n", [1, 64])
 def test_terms_and_rotations_equal_the_numpy_path(kind: str, n: int) -> None:
     fast, slow = _pair(kind)

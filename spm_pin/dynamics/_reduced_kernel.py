@@ -17,9 +17,17 @@ the rows of the batch:
   settled there take the Python path).
 
 The constants (:data:`Constants`, built by ``ReducedDynamics``) travel as one tuple
-of arrays and floats. The results agree with the numpy path to rounding (the sums
-are taken in another order; ``tests/test_reduced_kernel`` compares them), not bit for
-bit. Nothing here checks inputs: the callers pass checked, C-contiguous float arrays.
+of arrays and floats; the callees that take it on the hot path are inlined into the
+compiled callers (:func:`spm_pin._jit.inline`), since passing the arrays costs more
+than their arithmetic. Per state, cos and sin of the input angles and the proximal
+axes are computed once and shared by the rotation, the terms and gravity. The mass
+and bias terms of a distal link use its two axes in its own frame (x = D^T u_i,
+y = D^T w_i) rather than its whole rotation D: W^T D I D^T W is a sum of three
+scalars times outer products of e_i and Psi_i.
+
+The results agree with the numpy path to rounding (the sums are taken in another
+order; ``tests/test_reduced_kernel`` compares them), not bit for bit. Nothing here
+checks inputs: the callers pass checked, C-contiguous float arrays.
 """
 
 from __future__ import annotations
@@ -29,6 +37,8 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
+from .. import _jit
 
 __all__ = [
     "KERNELS",
@@ -171,13 +181,9 @@ def _leg_row(vJ: Vec, vu: float, vw: float, e: Vec, p: Vec) -> Vec:
     )
 
 
-def _leg_matrix(x: Vec, e: Vec, y: Vec, p: Vec) -> Mat:
-    """x e^T + y p^T (rows)."""
-    return (
-        (x[0] * e[0] + y[0] * p[0], x[0] * e[1] + y[0] * p[1], x[0] * e[2] + y[0] * p[2]),
-        (x[1] * e[0] + y[1] * p[0], x[1] * e[1] + y[1] * p[1], x[1] * e[2] + y[1] * p[2]),
-        (x[2] * e[0] + y[2] * p[0], x[2] * e[1] + y[2] * p[1], x[2] * e[2] + y[2] * p[2]),
-    )
+def _pair(e: Vec, p: Vec, xx: float, xy: float, yy: float, j: int, m: int) -> float:
+    """Entry (j, m) of xx e e^T + xy (e p^T + p e^T) + yy p p^T."""
+    return xx * e[j] * e[m] + xy * (e[j] * p[m] + p[j] * e[m]) + yy * p[j] * p[m]
 
 
 def _rate_rhs(
@@ -193,12 +199,21 @@ def _rate_rhs(
 
 
 # ------------------------------------------------------------------ kinematics
-def _proximal(theta: Vec, u: Mat, w0: Mat) -> Mat:
-    """Rows w_i(theta_i): w0_i turned about u_i by theta_i."""
+def _trig(theta: Vec) -> tuple[Vec, Vec]:
+    """(cos theta_i, sin theta_i): computed once per state, shared by the rotation,
+    the proximal axes and the proximal links' gravity."""
     return (
-        _rotate(u[0], math.cos(theta[0]), math.sin(theta[0]), w0[0]),
-        _rotate(u[1], math.cos(theta[1]), math.sin(theta[1]), w0[1]),
-        _rotate(u[2], math.cos(theta[2]), math.sin(theta[2]), w0[2]),
+        (math.cos(theta[0]), math.cos(theta[1]), math.cos(theta[2])),
+        (math.sin(theta[0]), math.sin(theta[1]), math.sin(theta[2])),
+    )
+
+
+def _proximal(cos: Vec, sin: Vec, u: Mat, w0: Mat) -> Mat:
+    """Rows w_i(theta_i): w0_i turned about u_i by theta_i (given its cos and sin)."""
+    return (
+        _rotate(u[0], cos[0], sin[0], w0[0]),
+        _rotate(u[1], cos[1], sin[1], w0[1]),
+        _rotate(u[2], cos[2], sin[2], w0[2]),
     )
 
 
@@ -241,12 +256,13 @@ def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int
     return R, residual
 
 
-def _home_rotation(theta: Vec, R: Mat, k: Constants) -> tuple[bool, Mat]:
-    """(settled, R): Newton from R, accepted when the residual is within the closure
-    tolerance and the home sign rule holds (every b_ii > sign_tol, det A of the sign
-    it has at home and larger than sign_tol in size)."""
-    u, w0, v0 = _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2])
-    return home_rotation_of(theta, R, u, w0, v0, k[13], k[16], k[17], k[19], int(k[20]))
+@_jit.inline
+def _home_rotation(w: Mat, R: Mat, k: Constants) -> tuple[bool, Mat]:
+    """(settled, R) for the proximal axes w: Newton from R, accepted when the residual
+    is within the closure tolerance and the home sign rule holds (every b_ii >
+    sign_tol, det A of the sign it has at home and larger than sign_tol in size)."""
+    u, v0 = _mat_of(k[0]), _mat_of(k[2])
+    return _settle(w, R, u, v0, k[13], k[16], k[17], k[19], int(k[20]))
 
 
 def home_rotation_of(
@@ -261,10 +277,26 @@ def home_rotation_of(
     tol: float,
     iterations: int,
 ) -> tuple[bool, Mat]:
-    """:func:`_home_rotation` with its constants given one by one: the design's rows
-    u, w0, v0, cos a2, the sign of det A at home, the sign tolerance, the closure
-    tolerance and the Newton iterations."""
-    w = _proximal(theta, u, w0)
+    """:func:`_home_rotation` of the input angles theta, with its constants given one
+    by one: the design's rows u, w0, v0, cos a2, the sign of det A at home, the sign
+    tolerance, the closure tolerance and the Newton iterations."""
+    cos, sin = _trig(theta)
+    w = _proximal(cos, sin, u, w0)
+    return _settle(w, R, u, v0, cos_a2, home_sign, sign_tol, tol, iterations)
+
+
+def _settle(
+    w: Mat,
+    R: Mat,
+    u: Mat,
+    v0: Mat,
+    cos_a2: float,
+    home_sign: float,
+    sign_tol: float,
+    tol: float,
+    iterations: int,
+) -> tuple[bool, Mat]:
+    """:func:`home_rotation_of` from the proximal axes w."""
     R, residual = _newton(R, w, v0, cos_a2, 0.1 * tol, int(iterations))
     v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
     b0 = _dot(_cross(u[0], w[0]), v[0])
@@ -280,10 +312,12 @@ def home_rotation_of(
 
 
 # ------------------------------------------------------------------ dynamics
-def _row_terms(theta: Vec, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
-    """Every term of one state, as ``ReducedDynamics._terms`` and ``_bias``:
-    (singular, det A, M, c, g, friction, J, Psi, Chi)."""
-    u, w0, v0 = _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2])
+@_jit.inline
+def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
+    """Every term of one state (the cos and sin of its input angles, its proximal axes
+    w), as ``ReducedDynamics._terms`` and ``_bias``: (singular, det A, M, c, g,
+    friction, J, Psi, Chi)."""
+    u, v0 = _mat_of(k[0]), _mat_of(k[2])
     frame_inv, dist_inertia = k[3], k[4]
     I_p = _mat_of(k[5])
     prox, armature = k[6], k[21]
@@ -292,7 +326,6 @@ def _row_terms(theta: Vec, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
     plat_moment, grav = _vec_of(k[9]), _vec_of(k[10])
     viscous, coulomb = k[11], k[12]
     smoothing, mode, singular_det = k[14], k[15], k[18]
-    w = _proximal(theta, u, w0)
     v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
     a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
     uxw = (_cross(u[0], w[0]), _cross(u[1], w[1]), _cross(u[2], w[2]))
@@ -359,40 +392,40 @@ def _row_terms(theta: Vec, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
         alpha_p = _mat_t_vec(cof, rhs)
         alpha_p = (alpha_p[0] / det, alpha_p[1] / det, alpha_p[2] / det)
     for i in range(3):
-        wi, ui = w[i], u[i]
-        # omega_d,i = W theta_dot, W[m][j] = u_i[m] e_ij + w_i[m] Psi_i[j]
-        W = _leg_matrix(ui, _unit(i), wi, Psi[i])
-        # D_i = [w_i v_i a_i] F_i^-1
-        F: Mat = (
-            (wi[0], v[i][0], a[i][0]),
-            (wi[1], v[i][1], a[i][1]),
-            (wi[2], v[i][2], a[i][2]),
-        )
-        D = _mat_mul(F, _mat_of(frame_inv[i]))
+        wi, ui, vi, ai = w[i], u[i], v[i], a[i]
+        e, P = _unit(i), Psi[i]
+        # The distal link turns with D_i = [w_i v_i a_i] F_i^-1 and at
+        # omega_d,i = W theta_dot, W = u_i e_i^T + w_i Psi_i^T: in its frame the axes
+        # u_i, w_i are x = D^T u_i, y = D^T w_i (D^T = F_i^-T [w_i v_i a_i]^T), so
+        # W^T D I_d D^T W = xx e e^T + xy (e Psi_i^T + Psi_i e^T) + yy Psi_i Psi_i^T.
+        Fi = _mat_of(frame_inv[i])
         I_d = _mat_of(dist_inertia[i])
-        body = _mat_t_mul(D, W)  # D^T W
-        inertia_body = _mat_mul(I_d, body)
-        part = _mat_t_mul(body, inertia_body)
-        M00 += part[0][0]
-        M01 += part[0][1]
-        M02 += part[0][2]
-        M11 += part[1][1]
-        M12 += part[1][2]
-        M22 += part[2][2]
-        # gravity: the distal link's weight, and the proximal link's
-        dist_h = _mat_vec(D, _vec_of(dist_moment[i]))
-        torque = _mat_t_vec(W, _cross(dist_h, grav))
-        g0 -= torque[0]
-        g1 -= torque[1]
-        g2 -= torque[2]
-        prox_h = _rotate(ui, math.cos(theta[i]), math.sin(theta[i]), _vec_of(prox_moment[i]))
+        x = _mat_t_vec(Fi, (_dot(wi, ui), _dot(vi, ui), _dot(ai, ui)))
+        y = _mat_t_vec(Fi, (_dot(wi, wi), _dot(vi, wi), _dot(ai, wi)))
+        Ix = _mat_vec(I_d, x)
+        Iy = _mat_vec(I_d, y)
+        xx, xy, yy = _dot(x, Ix), _dot(y, Ix), _dot(y, Iy)
+        M00 += _pair(e, P, xx, xy, yy, 0, 0)
+        M01 += _pair(e, P, xx, xy, yy, 0, 1)
+        M02 += _pair(e, P, xx, xy, yy, 0, 2)
+        M11 += _pair(e, P, xx, xy, yy, 1, 1)
+        M12 += _pair(e, P, xx, xy, yy, 1, 2)
+        M22 += _pair(e, P, xx, xy, yy, 2, 2)
+        # gravity: the distal link's weight (first moment D h = [w v a] F^-1 h), and
+        # the proximal link's
+        p = _mat_vec(Fi, _vec_of(dist_moment[i]))
+        dist_h = (
+            wi[0] * p[0] + vi[0] * p[1] + ai[0] * p[2],
+            wi[1] * p[0] + vi[1] * p[1] + ai[1] * p[2],
+            wi[2] * p[0] + vi[2] * p[1] + ai[2] * p[2],
+        )
+        weight = _cross(dist_h, grav)
+        gu, gw = _dot(ui, weight), _dot(wi, weight)  # W^T z = e (u.z) + Psi_i (w.z)
+        prox_h = _rotate(ui, cos[i], sin[i], _vec_of(prox_moment[i]))
         gi = -_dot(ui, _cross(prox_h, grav))
-        if i == 0:
-            g0 += gi
-        elif i == 1:
-            g1 += gi
-        else:
-            g2 += gi
+        g0 += gi * e[0] - (gu * e[0] + gw * P[0])
+        g1 += gi * e[1] - (gu * e[1] + gw * P[1])
+        g2 += gi * e[2] - (gu * e[2] + gw * P[2])
         if bias:
             psi_ddot = _dot(
                 (
@@ -402,25 +435,25 @@ def _row_terms(theta: Vec, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
                 ),
                 s[i],
             )
-            alpha_d = (
-                psi_ddot * wi[0] + psi_dot[i] * w_dot[i][0],
-                psi_ddot * wi[1] + psi_dot[i] * w_dot[i][1],
-                psi_ddot * wi[2] + psi_dot[i] * w_dot[i][2],
+            # in the link's frame: omega_d = x rate_i + y psi_dot_i, and
+            # alpha_d = psi_ddot y + psi_dot_i rate_i z, z = D^T (u_i x w_i)
+            uw = uxw[i]
+            z = _mat_t_vec(Fi, (_dot(wi, uw), _dot(vi, uw), _dot(ai, uw)))
+            Iz = _mat_vec(I_d, z)
+            ri, pi = rate[i], psi_dot[i]
+            spin = pi * ri
+            od = (x[0] * ri + y[0] * pi, x[1] * ri + y[1] * pi, x[2] * ri + y[2] * pi)
+            Iod = (Ix[0] * ri + Iy[0] * pi, Ix[1] * ri + Iy[1] * pi, Ix[2] * ri + Iy[2] * pi)
+            gyro = _cross(od, Iod)
+            q = (
+                Iy[0] * psi_ddot + Iz[0] * spin + gyro[0],
+                Iy[1] * psi_ddot + Iz[1] * spin + gyro[1],
+                Iy[2] * psi_ddot + Iz[2] * spin + gyro[2],
             )
-            omega_d = (
-                ui[0] * rate[i] + wi[0] * psi_dot[i],
-                ui[1] * rate[i] + wi[1] * psi_dot[i],
-                ui[2] * rate[i] + wi[2] * psi_dot[i],
-            )
-            od = _mat_t_vec(D, omega_d)
-            ad = _mat_t_vec(D, alpha_d)
-            t1 = _mat_vec(I_d, ad)
-            t2 = _cross(od, _mat_vec(I_d, od))
-            world = _mat_vec(D, (t1[0] + t2[0], t1[1] + t2[1], t1[2] + t2[2]))
-            ci = _mat_t_vec(W, world)
-            c0 += ci[0]
-            c1 += ci[1]
-            c2 += ci[2]
+            cu, cw = _dot(x, q), _dot(y, q)  # W^T D q = e (x.q) + Psi_i (y.q)
+            c0 += cu * e[0] + cw * P[0]
+            c1 += cu * e[1] + cw * P[1]
+            c2 += cu * e[2] + cw * P[2]
     # the platform
     Jp = _mat_t_mul(R, J)  # R^T J
     part = _mat_t_mul(Jp, _mat_mul(I_p, Jp))
@@ -462,9 +495,10 @@ def _row_terms(theta: Vec, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
     return False, det, M, c, g, friction, J, Psi, Chi
 
 
-def _row_acceleration(theta: Vec, rate: Vec, tau: Vec, R: Mat, k: Constants) -> Any:
-    """(singular, det A, theta_ddot) of one state."""
-    singular, det, M, c, g, friction, _, _, _ = _row_terms(theta, rate, R, k, True)
+@_jit.inline
+def _row_acceleration(cos: Vec, sin: Vec, w: Mat, rate: Vec, tau: Vec, R: Mat, k: Constants) -> Any:
+    """(singular, det A, theta_ddot) of one state (as :func:`_row_terms` takes it)."""
+    singular, det, M, c, g, friction, _, _, _ = _row_terms(cos, sin, w, rate, R, k, True)
     if singular:
         return True, det, (0.0, 0.0, 0.0)
     rhs = (
@@ -482,7 +516,18 @@ def rotations(theta: FloatArray, reference: FloatArray, k: Constants, R: FloatAr
     n = theta.shape[0]
     ok = np.zeros(n, dtype=np.bool_)
     for row in range(n):
-        done, rotation = _home_rotation(_vec_of(theta[row]), _mat_of(reference[row]), k)
+        done, rotation = home_rotation_of(
+            _vec_of(theta[row]),
+            _mat_of(reference[row]),
+            _mat_of(k[0]),
+            _mat_of(k[1]),
+            _mat_of(k[2]),
+            k[13],
+            k[16],
+            k[17],
+            k[19],
+            int(k[20]),
+        )
         ok[row] = done
         _put_mat(R[row], rotation)
     return ok
@@ -507,7 +552,9 @@ def terms(
     n = theta.shape[0]
     singular = np.zeros(n, dtype=np.bool_)
     for row in range(n):
-        out = _row_terms(_vec_of(theta[row]), _vec_of(rate[row]), _mat_of(R[row]), k, bias)
+        cos, sin = _trig(_vec_of(theta[row]))
+        w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
+        out = _row_terms(cos, sin, w, _vec_of(rate[row]), _mat_of(R[row]), k, bias)
         singular[row] = out[0]
         det[row] = out[1]
         if out[0]:
@@ -541,8 +588,10 @@ def accelerations(
     n = theta.shape[0]
     singular = np.zeros(n, dtype=np.bool_)
     for row in range(n):
+        cos, sin = _trig(_vec_of(theta[row]))
+        w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
         bad, d, acc = _row_acceleration(
-            _vec_of(theta[row]), _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), k
+            cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), k
         )
         singular[row] = bad
         det[row] = d
@@ -558,20 +607,34 @@ def _rk4_stage(
     theta_ddot)."""
     t = (theta[0] + step * r[0], theta[1] + step * r[1], theta[2] + step * r[2])
     rs = (rate[0] + step * a[0], rate[1] + step * a[1], rate[2] + step * a[2])
-    ok, Rs = _home_rotation(t, R, k)
+    cos, sin = _trig(t)
+    w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
+    ok, Rs = _home_rotation(w, R, k)
     if not ok:
         return STATUS_ROTATION, rs, rs
-    bad, _, acc = _row_acceleration(t, rs, tau, Rs, k)
+    bad, _, acc = _row_acceleration(cos, sin, w, rs, tau, Rs, k)
     if bad:
         return STATUS_SINGULAR, rs, acc
     return STATUS_OK, rs, acc
 
 
-def _row_step(theta: Vec, rate: Vec, tau: Vec, R: Mat, h: float, rk4: bool, k: Constants) -> Any:
-    """One time step of one robot from a settled rotation R: (status, theta', rate',
-    theta_ddot)."""
+@_jit.inline
+def _row_step(
+    theta: Vec,
+    cos: Vec,
+    sin: Vec,
+    w: Mat,
+    rate: Vec,
+    tau: Vec,
+    R: Mat,
+    h: float,
+    rk4: bool,
+    k: Constants,
+) -> Any:
+    """One time step of one robot from a settled rotation R (cos, sin: of theta; w:
+    its proximal axes): (status, theta', rate', theta_ddot)."""
     zero = (0.0, 0.0, 0.0)
-    bad, _, a1 = _row_acceleration(theta, rate, tau, R, k)
+    bad, _, a1 = _row_acceleration(cos, sin, w, rate, tau, R, k)
     if bad:
         return STATUS_SINGULAR, zero, zero, zero
     if not rk4:
@@ -623,10 +686,14 @@ def step(
     n = theta.shape[0]
     for row in range(n):
         th = _vec_of(theta[row])
-        ok, R = _home_rotation(th, _mat_of(reference[row]), k)
+        cos, sin = _trig(th)
+        w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
+        ok, R = _home_rotation(w, _mat_of(reference[row]), k)
         if not ok:
             return STATUS_ROTATION
-        status, t, r, acc = _row_step(th, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, k)
+        status, t, r, acc = _row_step(
+            th, cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, k
+        )
         if status != STATUS_OK:
             return int(status)
         _put_mat(R_out[row], R)
@@ -653,11 +720,13 @@ KERNELS = (
     _unit,
     _scale,
     _leg_row,
-    _leg_matrix,
+    _pair,
     _rate_rhs,
+    _trig,
     _proximal,
     _cofactors,
     _newton,
+    _settle,
     home_rotation_of,
     _home_rotation,
     _row_terms,

@@ -45,8 +45,10 @@ from ..dynamics._reduced_kernel import (
     Constants,
     _home_rotation,
     _mat_of,
+    _proximal,
     _put_mat,
     _row_step,
+    _trig,
     _vec_of,
 )
 
@@ -170,6 +172,7 @@ def period(
     speed_next = np.empty((n, 3))
     R_next = np.empty((n, 3, 3))
     tau_next = np.empty((n, 3))
+    u, w0 = _mat_of(k[0]), _mat_of(k[1])
     for step in range(substeps):
         offset = step * dt
         for row in range(n):
@@ -196,10 +199,12 @@ def period(
                 and _finite_rotation(R[row])
             ):
                 return step
-            settled, rotation = _home_rotation(th, _mat_of(R[row]), k)
+            cos, sin = _trig(th)
+            w = _proximal(cos, sin, u, w0)
+            settled, rotation = _home_rotation(w, _mat_of(R[row]), k)
             if not settled:
                 return step
-            status, t, r, _ = _row_step(th, sp, tau, rotation, dt, rk4, k)
+            status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, k)
             if status != STATUS_OK:
                 return step
             _put_mat(R_next[row], rotation)
