@@ -622,6 +622,21 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
                 peer=mj_vector,
                 targets=("dynamic_vector_steps_per_second",),
             ),
+        ]
+    if "vector_cover_only_one_thread" in dynamic:  # runs with the threads' rows
+        rows += [
+            timed(
+                "dynamic_vector_step_cover_only_one_thread",
+                f"envs: OrientDynamic-v0 batched step, cover_only, one thread, per env "
+                f"step (N = {dynamic['vector_cover_only_one_thread']['n']:,})",
+                dynamic["vector_cover_only_one_thread"],
+                per_item=True,
+                peer_name=mj_name,
+                peer=mj_vector,
+            ),
+        ]
+    if "vector_cover_only" in dynamic:
+        rows += [
             timed(
                 "dynamic_single_step_cover_only",
                 "envs: OrientDynamic-v0 single env step, cover_only",

@@ -21,7 +21,9 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    MuJoCo peer's N, and of :class:`~spm_pin.envs.OrientDynamicEnv`; the loop-closure
    error of the batch's states after the timed steps; the batch (N = 4096) and the
    single environment again with the cover of section 7 as their safe set
-   (``cover_only``: no collision query in a step).
+   (``cover_only``: no collision query in a step); the compiled physics of a batch
+   runs on every core the process may use (in chunks of at least 256 robots;
+   ``threads`` in each row), and the cover_only batch once more on one thread.
 5. ``mujoco_peer``: the same task built the usual way on MuJoCo
    (:class:`benchmarks._mujoco_env.MujocoOrientEnv`: the exported MJCF, position
    actuators, ``mj_step`` with ``nstep`` 20 at the same 1 ms step), one environment
@@ -80,6 +82,7 @@ from spm_pin.envs import (  # noqa: E402
     OrientEnv,
     OrientSettings,
     OrientVectorEnv,
+    _dynamic,
 )
 from spm_pin.envs._safe_lookup import SafeLookup  # noqa: E402
 from spm_pin.kinematics import forward_kinematics  # noqa: E402
@@ -246,15 +249,18 @@ def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
     closure = 0.0
     plain = OrientSettings()
     only = OrientSettings(cover=str(cover), cover_only=True)
-    for key, n, settings in (
-        ("vector", sizes.dynamic_batch, plain),
-        ("vector_peer_n", sizes.peer_batch, plain),
-        ("vector_cover_only", sizes.dynamic_batch, only),
+    for key, n, settings, threads in (
+        ("vector", sizes.dynamic_batch, plain, None),
+        ("vector_peer_n", sizes.peer_batch, plain, None),
+        ("vector_cover_only", sizes.dynamic_batch, only, None),
+        ("vector_cover_only_one_thread", sizes.dynamic_batch, only, 1),
     ):
         env = OrientDynamicVectorEnv(n, settings)
+        env.core.threads = threads
         env.reset(seed=SEED)
         timed = time_call(_stepper(env, n), repeats=sizes.dynamic_repeats)
-        out[key] = {**timed.timing.summary(items=n), "n": n}
+        used = min(threads or _dynamic._cores(), max(1, n // _dynamic.THREADED_ROWS))
+        out[key] = {**timed.timing.summary(items=n), "n": n, "threads": used}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
     for key, settings in (("single", plain), ("single_cover_only", only)):
         single = OrientDynamicEnv(settings, max_steps=10**7)
@@ -490,8 +496,14 @@ def report(payload: dict[str, Any]) -> str:
         (f"OrientDynamicVectorEnv, N = {dynamic['vector']['n']}", dynamic["vector"]),
         (f"OrientDynamicVectorEnv, N = {dynamic['vector_peer_n']['n']}", dynamic["vector_peer_n"]),
         (
-            f"OrientDynamicVectorEnv, cover_only, N = {dynamic['vector_cover_only']['n']}",
+            f"OrientDynamicVectorEnv, cover_only, N = {dynamic['vector_cover_only']['n']}, "
+            f"{dynamic['vector_cover_only']['threads']} threads",
             dynamic["vector_cover_only"],
+        ),
+        (
+            f"OrientDynamicVectorEnv, cover_only, N = {dynamic['vector_cover_only']['n']}, "
+            "one thread",
+            dynamic["vector_cover_only_one_thread"],
         ),
         ("OrientDynamicEnv, one step", dynamic["single"]),
         ("OrientDynamicEnv, cover_only, one step", dynamic["single_cover_only"]),

@@ -12,8 +12,10 @@ batch code's bits; ``tests/test_jit`` compares them.
 Python function whose globals see the compiled callees, so the Python functions
 themselves stay as they are (numba is imported only when kernels are asked for: the
 command line does not pay for it); :func:`ready` gives them to library functions
-that use them once something (the guard of a control loop) has compiled them.
-Without numba, or with the environment variable
+that use them once something (the guard of a control loop) has compiled them. The
+compiled kernels release the GIL (they touch no Python object), so threads may run
+them on disjoint rows at once; :func:`inline` marks the few callees a hot loop
+should have inlined. Without numba, or with the environment variable
 ``SPM_PIN_JIT=0``, it gives the Python functions: same results, slower.
 """
 
@@ -123,7 +125,7 @@ def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
     with warnings.catch_warnings():  # a read-only install cannot cache: fine
         warnings.simplefilter("ignore", numba.NumbaWarning)
         how = "always" if getattr(function, _INLINE, False) else "never"
-        compiled: Callable[..., Any] = numba.njit(cache=True, inline=how)(clone)
+        compiled: Callable[..., Any] = numba.njit(cache=True, nogil=True, inline=how)(clone)
     return compiled
 
 

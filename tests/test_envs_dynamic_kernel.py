@@ -29,7 +29,7 @@ pytest.importorskip("numba")  # the test extra installs it; without it nothing c
 import spm_pin as spm  # noqa: E402
 from spm_pin import _jit  # noqa: E402
 from spm_pin.envs import OrientDynamicEnv, OrientDynamicVectorEnv  # noqa: E402
-from spm_pin.envs._dynamic import DynamicCore  # noqa: E402
+from spm_pin.envs._dynamic import THREADED_ROWS, DynamicCore  # noqa: E402
 from spm_pin.envs._dynamic_kernel import period  # noqa: E402
 
 #: Tolerances of this file, by what is compared.
@@ -154,17 +154,17 @@ def test_the_boundary_is_met_and_stays_alike() -> None:
         assert np.any(fraction < 1.0)  # the guard stopped some steps
 
 
-def _crossing(env: Any) -> None:
-    """Put robot 0 just inside the home-mode boundary, moving across it: the dynamics
-    cannot go on from the middle of the next period."""
+def _crossing(env: Any, row: int = 0) -> None:
+    """Put robot ``row`` just inside the home-mode boundary, moving across it: the
+    dynamics cannot go on from the middle of the next period."""
     bad = np.radians([0.0, 100.0, -100.0])  # gaps of 20, 320, 20 deg: unreachable
     line = np.linspace(0.0, 1.0, 2001)[:, None] * bad
     edge = int(np.argmin(spm.forward_kinematics(line).reachable))
     start = line[edge - 40]
-    env.core.theta[0] = start
-    env.core.R[0] = spm.forward_kinematics(start).R
+    env.core.theta[row] = start
+    env.core.R[row] = spm.forward_kinematics(start).R
     distance = float(np.linalg.norm(line[edge] - start))
-    env.core.speed[0] = bad / np.linalg.norm(bad) * distance / 0.004
+    env.core.speed[row] = bad / np.linalg.norm(bad) * distance / 0.004
 
 
 @pytest.mark.parametrize("safety", ["clip", "terminate"])
@@ -218,6 +218,39 @@ def test_hand_back_for_a_far_warm_start() -> None:
         records.append(rows)
     assert calls[0] == 0 and calls[1:] == [made[0].core.substeps] * 4
     np.testing.assert_allclose(records[0], records[1], rtol=0.0, atol=TOL["same"])
+
+
+@pytest.mark.parametrize("actuation", ["position", "torque"])
+def test_threads_step_as_one_thread(actuation: str) -> None:
+    """A batch of two chunks stepped by two threads, over steps that meet the guard,
+    and a period that a robot of the second chunk cannot finish (the batch is put back
+    and stepped in one call): the same bits as one thread."""
+    n = 2 * THREADED_ROWS + 37
+    made = [OrientDynamicVectorEnv(n, actuation=actuation, max_steps=1000) for _ in range(2)]
+    made[0].core.threads, made[1].core.threads = 2, 1
+    chunked: list[int] = []
+    original = made[0].core._threaded_period
+
+    def spy(*args: Any) -> int:
+        done = original(*args)
+        chunked.append(done)
+        return done
+
+    made[0].core._threaded_period = spy  # type: ignore[method-assign]
+    scale = 0.2 if actuation == "torque" else 1.0
+    actions = scale * np.sign(_actions(np.random.default_rng(17), 12, n, hold=6))
+    records = []
+    for env in made:
+        env.reset(seed=21)
+        rows = [_record(env, env.step(action)) for action in actions]
+        _crossing(env, row=n - 5)
+        rows += [_record(env, env.step(np.zeros((n, 3)))) for _ in range(2)]
+        records.append(np.array(rows))
+    substeps = made[0].core.substeps
+    assert chunked[:12] == [substeps] * 12  # the threads took the whole periods
+    assert 0 < chunked[12] < substeps  # ... and handed back in the middle, in one call
+    assert np.array_equal(records[0], records[1])
+    assert np.any(records[0][:12, 3 * n + 21 * n : 4 * n + 21 * n] < 1.0)  # guard met
 
 
 def test_uncompiled_kernel_gives_the_compiled_results() -> None:

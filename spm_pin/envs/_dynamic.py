@@ -32,8 +32,12 @@ of the period's start (speeds zeroed) and ends the episode with the penalty.
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
+import itertools
 import math
+import os
+import threading
 from typing import Any
 
 import numpy as np
@@ -52,6 +56,28 @@ __all__ = ["ACTUATIONS", "INTEGRATORS", "DynamicCore", "PhysicsSettings", "physi
 ACTUATIONS = ("position", "torque")
 #: The integrators of :meth:`~spm_pin.dynamics.ReducedDynamics.step`.
 INTEGRATORS = ("euler", "rk4")
+#: Fewest rows in a chunk of a period shared among threads (below, handing the work
+#: to a thread costs more than it saves).
+THREADED_ROWS = 256
+
+_pool_lock = threading.Lock()
+_the_pool: concurrent.futures.ThreadPoolExecutor | None = None
+
+
+def _cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def _pool() -> concurrent.futures.ThreadPoolExecutor:
+    """The threads that step the chunks of a period (made on first use)."""
+    global _the_pool
+    with _pool_lock:
+        if _the_pool is None:
+            _the_pool = concurrent.futures.ThreadPoolExecutor(
+                max_workers=max(2, _cores()), thread_name_prefix="spm-pin-physics"
+            )
+        return _the_pool
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,6 +189,10 @@ class DynamicCore(OrientCore):
         #: The compiled period where numba is installed, not switched off
         #: (``SPM_PIN_JIT=0``) and the dynamics run compiled; False: the loop alone.
         self.fused = True
+        #: Threads that share a compiled period of at least :data:`THREADED_ROWS`
+        #: rows, in contiguous chunks (the kernel releases the GIL; the results are
+        #: one thread's, bit for bit); None: one per core this process may use.
+        self.threads: int | None = None
         self._fused_kernel: Any = None
 
     def reset_rows(self, rows: IntArray, rngs: list[np.random.Generator]) -> None:
@@ -239,6 +269,55 @@ class DynamicCore(OrientCore):
             x.dtype == np.float64 and x.flags.c_contiguous for x in arrays
         ):
             return 0
+        n = state[0].shape[0]
+        chunks = min(self.threads or _cores(), n // THREADED_ROWS)
+        if chunks <= 1:
+            return self._call_period(kernel, state, drive, records)
+        return self._threaded_period(kernel, state, drive, records, chunks)
+
+    def _threaded_period(
+        self,
+        kernel: Any,
+        state: tuple[FloatArray, FloatArray, FloatArray],
+        drive: tuple[FloatArray, FloatArray, FloatArray],
+        records: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+        chunks: int,
+    ) -> int:
+        """:meth:`_fused_steps` on ``chunks`` contiguous chunks of rows at once, in
+        threads. The kernel stops a chunk before the first step that a row of it cannot
+        take; should a chunk stop early, the state is put back and the whole batch
+        runs in one call, so that every row stops at the same step, as in one call."""
+        path, kept = records[0], records[1:]
+        saved = [x.copy() for x in (*state, *kept)]
+        bounds = np.linspace(0, state[0].shape[0], chunks + 1).astype(int)
+        parts: list[tuple[Any, Any, Any]] = []
+        for a, b in itertools.pairwise(bounds.tolist()):
+            part_path = np.empty((path.shape[0], b - a, 3))
+            parts.append(
+                (
+                    tuple(x[a:b] for x in state),
+                    tuple(x[a:b] for x in drive),
+                    (part_path, *(x[a:b] for x in kept)),
+                )
+            )
+        futures = [_pool().submit(self._call_period, kernel, *part) for part in parts]
+        done = [future.result() for future in futures]
+        if min(done) == self.substeps:
+            for (a, b), part in zip(itertools.pairwise(bounds.tolist()), parts, strict=True):
+                path[1:, a:b] = part[2][0][1:]
+            return self.substeps
+        for x, y in zip((*state, *kept), saved, strict=True):
+            x[...] = y
+        return self._call_period(kernel, state, drive, records)
+
+    def _call_period(
+        self,
+        kernel: Any,
+        state: tuple[FloatArray, FloatArray, FloatArray],
+        drive: tuple[FloatArray, FloatArray, FloatArray],
+        records: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    ) -> int:
+        """``kernel`` (a period) called on the state, the drive and the records."""
         servo_model = self.servo
         done: int = kernel(
             *state,

@@ -24,8 +24,10 @@ numpy loop treats specially (an input the dynamics' checks refuse: too large, Na
 inf; a rotation the warm start does not settle, which the numpy path solves by
 forward kinematics; a singularity) and returns how many steps it completed: the
 numpy loop goes on from there with the state it left, so the results, the errors and
-the ends are those of the numpy loop. Nothing here checks its arguments: the caller
-passes C-contiguous float arrays.
+the ends are those of the numpy loop. A step of one row (:func:`_advance_row`)
+depends on no other row, so the caller may run the period on chunks of rows in
+threads (the compiled kernels release the GIL). Nothing here checks its arguments:
+the caller passes C-contiguous float arrays.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from .. import _jit
 from .._checks import ANGLE_LIMIT
 from ..dynamics._checks import LIMITS
 from ..dynamics._reduced_kernel import (
@@ -43,6 +46,7 @@ from ..dynamics._reduced_kernel import (
 from ..dynamics._reduced_kernel import (
     STATUS_OK,
     Constants,
+    Mat,
     _home_rotation,
     _mat_of,
     _proximal,
@@ -123,6 +127,103 @@ def _load(tau: Vec, speed: Vec, stall: float, no_load: float) -> float:
     return largest
 
 
+@_jit.inline
+def _advance_row(
+    row: int,
+    offset: float,
+    theta: FloatArray,
+    speed: FloatArray,
+    R: FloatArray,
+    goal_start: FloatArray,
+    goal_speed: FloatArray,
+    wanted: FloatArray,
+    position: bool,
+    servo: Servo,
+    dt: float,
+    rk4: bool,
+    k: Constants,
+    u: Mat,
+    w0: Mat,
+    theta_next: FloatArray,
+    speed_next: FloatArray,
+    R_next: FloatArray,
+    tau_next: FloatArray,
+) -> bool:
+    """One physics step of ``row`` into the ``*_next`` arrays; False (nothing written)
+    where the numpy loop must take it."""
+    stall, no_load = servo[2], servo[3]
+    th = _vec_of(theta[row])
+    sp = _vec_of(speed[row])
+    if position:
+        gs, gv = goal_start[row], goal_speed[row]
+        raw = (
+            _servo(gs[0], gv[0], offset, th[0], sp[0], servo),
+            _servo(gs[1], gv[1], offset, th[1], sp[1], servo),
+            _servo(gs[2], gv[2], offset, th[2], sp[2], servo),
+        )
+    else:
+        raw = _vec_of(wanted[row])
+    tau = (
+        _clip_torque(raw[0], sp[0], stall, no_load),
+        _clip_torque(raw[1], sp[1], stall, no_load),
+        _clip_torque(raw[2], sp[2], stall, no_load),
+    )
+    if not (
+        _within(th, _ANGLE_BOUND)
+        and _within(sp, _SPEED_BOUND)
+        and _within(tau, _TORQUE_BOUND)
+        and _finite_rotation(R[row])
+    ):
+        return False
+    cos, sin = _trig(th)
+    w = _proximal(cos, sin, u, w0)
+    settled, rotation = _home_rotation(w, _mat_of(R[row]), k)
+    if not settled:
+        return False
+    status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, k)
+    if status != STATUS_OK:
+        return False
+    _put_mat(R_next[row], rotation)
+    for j in range(3):
+        theta_next[row, j] = t[j]
+        speed_next[row, j] = r[j]
+        tau_next[row, j] = tau[j]
+    return True
+
+
+@_jit.inline
+def _commit_row(
+    row: int,
+    step: int,
+    servo: Servo,
+    theta: FloatArray,
+    speed: FloatArray,
+    R: FloatArray,
+    theta_next: FloatArray,
+    speed_next: FloatArray,
+    R_next: FloatArray,
+    tau_next: FloatArray,
+    path: FloatArray,
+    torque: FloatArray,
+    torque_speed: FloatArray,
+    load: FloatArray,
+) -> None:
+    """Take the step of ``row`` from the ``*_next`` arrays, and its records."""
+    sp = _vec_of(speed[row])
+    tau = _vec_of(tau_next[row])
+    value = _load(tau, sp, servo[2], servo[3])
+    if not load[row] > value:  # np.maximum(load, value)
+        load[row] = value
+    for j in range(3):
+        torque[row, j] = tau[j]
+        torque_speed[row, j] = sp[j]
+        theta[row, j] = theta_next[row, j]
+        speed[row, j] = speed_next[row, j]
+        path[step + 1, row, j] = theta_next[row, j]
+        for m in range(3):
+            R[row, j, m] = R_next[row, j, m]
+
+
 def period(
     theta: FloatArray,
     speed: FloatArray,
@@ -166,7 +267,6 @@ def period(
         were; fewer when a step met what the numpy loop must take, which it then
         takes from the state left here).
     """
-    stall, no_load = servo[2], servo[3]
     n = theta.shape[0]
     theta_next = np.empty((n, 3))
     speed_next = np.empty((n, 3))
@@ -176,58 +276,28 @@ def period(
     for step in range(substeps):
         offset = step * dt
         for row in range(n):
-            th = _vec_of(theta[row])
-            sp = _vec_of(speed[row])
-            if position:
-                gs, gv = goal_start[row], goal_speed[row]
-                raw = (
-                    _servo(gs[0], gv[0], offset, th[0], sp[0], servo),
-                    _servo(gs[1], gv[1], offset, th[1], sp[1], servo),
-                    _servo(gs[2], gv[2], offset, th[2], sp[2], servo),
-                )
-            else:
-                raw = _vec_of(wanted[row])
-            tau = (
-                _clip_torque(raw[0], sp[0], stall, no_load),
-                _clip_torque(raw[1], sp[1], stall, no_load),
-                _clip_torque(raw[2], sp[2], stall, no_load),
-            )
-            if not (
-                _within(th, _ANGLE_BOUND)
-                and _within(sp, _SPEED_BOUND)
-                and _within(tau, _TORQUE_BOUND)
-                and _finite_rotation(R[row])
-            ):
+            if not _advance_row(
+                row, offset, theta, speed, R, goal_start, goal_speed, wanted, position,
+                servo, dt, rk4, k, u, w0, theta_next, speed_next, R_next, tau_next,
+            ):  # fmt: skip
                 return step
-            cos, sin = _trig(th)
-            w = _proximal(cos, sin, u, w0)
-            settled, rotation = _home_rotation(w, _mat_of(R[row]), k)
-            if not settled:
-                return step
-            status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, k)
-            if status != STATUS_OK:
-                return step
-            _put_mat(R_next[row], rotation)
-            for j in range(3):
-                theta_next[row, j] = t[j]
-                speed_next[row, j] = r[j]
-                tau_next[row, j] = tau[j]
         for row in range(n):
-            sp = _vec_of(speed[row])
-            tau = _vec_of(tau_next[row])
-            value = _load(tau, sp, stall, no_load)
-            if not load[row] > value:  # np.maximum(load, value)
-                load[row] = value
-            for j in range(3):
-                torque[row, j] = tau[j]
-                torque_speed[row, j] = sp[j]
-                theta[row, j] = theta_next[row, j]
-                speed[row, j] = speed_next[row, j]
-                path[step + 1, row, j] = theta_next[row, j]
-                for m in range(3):
-                    R[row, j, m] = R_next[row, j, m]
+            _commit_row(
+                row, step, servo, theta, speed, R, theta_next, speed_next, R_next,
+                tau_next, path, torque, torque_speed, load,
+            )  # fmt: skip
     return substeps
 
 
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
-KERNELS = (*REDUCED_KERNELS, _within, _finite_rotation, _clip_torque, _servo, _load, period)
+KERNELS = (
+    *REDUCED_KERNELS,
+    _within,
+    _finite_rotation,
+    _clip_torque,
+    _servo,
+    _load,
+    _advance_row,
+    _commit_row,
+    period,
+)
