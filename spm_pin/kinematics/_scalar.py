@@ -8,7 +8,9 @@ order, in Python floats:
 * :func:`ik_home`: ``inverse_kinematics(R)`` in the home working mode;
 * :func:`fk_home`: ``forward_kinematics(theta).R`` and ``.reachable``;
 * :func:`measures`: ``jacobian(theta, R=R)``'s ``singularity_margin`` and
-  ``dexterity``.
+  ``dexterity``;
+* :func:`quaternion_of` and :func:`rpy_of`: ``quaternion_from_matrix(R)`` and
+  ``rpy_from_matrix(R)`` of one rotation (what a state read at 1 kHz converts).
 
 Two kinds of operations are left to numpy because Python's ``math`` module does not
 round them the same way: ``arctan2`` (numpy's vectorised version may differ from the C
@@ -40,7 +42,15 @@ from ..design import SPMDesign
 from ._common import cross
 from ._fk_single import Mat, Vec
 
-__all__ = ["ScalarConstants", "constants", "fk_home", "ik_home", "measures"]
+__all__ = [
+    "ScalarConstants",
+    "constants",
+    "fk_home",
+    "ik_home",
+    "measures",
+    "quaternion_of",
+    "rpy_of",
+]
 
 _TWO_PI = 2 * math.pi
 FloatArray = npt.NDArray[np.float64]
@@ -351,3 +361,35 @@ def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
         return solved
     result: FloatArray = _lapack.solve(a, b, signature="dd->d")
     return result
+
+
+# ------------------------------------------------------------------ rotations
+def quaternion_of(R: Sequence[Sequence[float]]) -> list[float]:
+    """``quaternion_from_matrix(R)`` (w, x, y, z; w >= 0) of one checked rotation
+    (rows), bit for bit: the same arithmetic in the same order (``sqrt`` is
+    correctly rounded in both)."""
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R
+    # Row k equals 4 q_k q; use the row with the largest diagonal entry 4 q_k^2.
+    rows = (
+        (1 + m00 + m11 + m22, m21 - m12, m02 - m20, m10 - m01),
+        (m21 - m12, 1 + m00 - m11 - m22, m01 + m10, m02 + m20),
+        (m02 - m20, m01 + m10, 1 - m00 + m11 - m22, m12 + m21),
+        (m10 - m01, m02 + m20, m12 + m21, 1 - m00 - m11 + m22),
+    )
+    k = 0  # the first of the largest, as np.argmax
+    for i in (1, 2, 3):
+        if rows[i][i] > rows[k][k]:
+            k = i
+    scale = 2.0 * math.sqrt(rows[k][k])
+    q = [x / scale for x in rows[k]]
+    return [-x for x in q] if q[0] < 0 else q
+
+
+def rpy_of(R: Sequence[Sequence[float]]) -> list[float]:
+    """``rpy_from_matrix(R)`` (roll, pitch, yaw) [rad] of one checked rotation (rows),
+    bit for bit; ``arctan2`` and ``hypot`` are numpy's (``math`` may round them
+    differently)."""
+    (m00, _, _), (m10, _, _), (m20, m21, m22) = R
+    hypot = float(np.hypot(m21, m22))
+    angles: list[float] = np.arctan2((m21, -m20, m10), (m22, hypot, m00)).tolist()
+    return angles

@@ -13,8 +13,9 @@ from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, TypeAdapter, model_validator
+from pydantic_core import to_json
 
-from ..rotations import quaternion_from_matrix, rpy_from_matrix
+from ..kinematics import _scalar
 from .backend import CHECK_NAMES, CollisionState, GoalReport, TwinState
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "check_response",
     "collisions_response",
     "finite_or_none",
+    "state_json",
     "state_response",
 ]
 
@@ -247,29 +249,62 @@ def _degrees(theta: Any) -> list[float]:
     return [float(x) + 0.0 for x in np.degrees(np.asarray(theta, dtype=float))]
 
 
+#: Degrees per radian, as ``np.degrees`` multiplies by it.
+_DEGREES = 180.0 / math.pi
+
+
+def _degrees_of(theta: Any) -> list[float]:
+    """:func:`_degrees` of a few angles [rad] in Python floats (the same bits)."""
+    return [x * _DEGREES + 0.0 for x in np.asarray(theta, dtype=float).tolist()]
+
+
+def _state_fields(state: TwinState) -> dict[str, Any]:
+    """The fields of :class:`StateResponse` for a state, in its order, as plain
+    Python values: the rotation's conversions in Python floats
+    (:func:`~spm_pin.kinematics._scalar.quaternion_of`, ``rpy_of``), bit for bit
+    those of :func:`~spm_pin.rotations.quaternion_from_matrix` and
+    :func:`~spm_pin.rotations.rpy_from_matrix` on one matrix, at a fraction of their
+    cost."""
+    rows: list[list[float]] | None = None
+    quaternion = rpy = None
+    if state.R is not None:
+        rows = np.asarray(state.R, dtype=float).tolist()
+        quaternion = _scalar.quaternion_of(rows)
+        rpy = [x * _DEGREES + 0.0 for x in _scalar.rpy_of(rows)]
+    return {
+        "theta_deg": _degrees_of(state.theta),
+        "R": rows,
+        "quaternion_wxyz": quaternion,
+        "rpy_deg": rpy,
+        "reachable": bool(state.reachable),
+        "pairs": [(a, b) for a, b in state.pairs],
+        "min_distance_m": finite_or_none(state.min_distance),
+        "dexterity": finite_or_none(state.dexterity),
+        "singularity_margin": finite_or_none(state.singularity_margin),
+        "assembly": state.assembly,
+        "backend": state.backend,
+        "moving": bool(state.moving),
+        "stops": int(state.stops),
+        "theta_dot_deg_s": None if state.theta_dot is None else _degrees_of(state.theta_dot),
+        "goal_deg": None if state.goal is None else _degrees_of(state.goal),
+        "torque": bool(state.torque),
+        "fault": state.fault,
+        "time": float(state.time),
+    }
+
+
 def state_response(state: TwinState) -> StateResponse:
     """The JSON form of a state."""
-    R = state.R
-    return StateResponse(
-        theta_deg=_degrees(state.theta),
-        R=None if R is None else [[float(x) for x in row] for row in R],
-        quaternion_wxyz=None if R is None else [float(x) for x in quaternion_from_matrix(R)],
-        rpy_deg=None if R is None else _degrees(rpy_from_matrix(R)),
-        reachable=state.reachable,
-        pairs=[(a, b) for a, b in state.pairs],
-        min_distance_m=finite_or_none(state.min_distance),
-        dexterity=finite_or_none(state.dexterity),
-        singularity_margin=finite_or_none(state.singularity_margin),
-        assembly=state.assembly,
-        backend=state.backend,
-        moving=state.moving,
-        stops=state.stops,
-        theta_dot_deg_s=None if state.theta_dot is None else _degrees(state.theta_dot),
-        goal_deg=None if state.goal is None else _degrees(state.goal),
-        torque=state.torque,
-        fault=state.fault,
-        time=state.time,
-    )
+    return StateResponse(**_state_fields(state))
+
+
+def state_json(state: TwinState) -> str:
+    """``state_response(state).model_dump_json()``, the same text, without building
+    the model: the fields serialised by pydantic's own JSON writer (numbers, the
+    escapes of strings; NaN and infinity as ``null``, as the model writes them).
+    What a state pushed at up to 1 kHz needs (``tests/test_remote_state_json.py``
+    compares the two text for text)."""
+    return to_json(_state_fields(state), inf_nan_mode="null").decode()
 
 
 def check_response(report: GoalReport) -> CheckResponse:

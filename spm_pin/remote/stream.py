@@ -48,7 +48,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from ..errors import SPMError, UnreachableError
 from ..rotations import matrix_from_quaternion, matrix_from_rpy
 from .backend import GoalRefusedError, TwinBackend
-from .models import CLIENT_MESSAGE, StreamAuth, StreamTarget, check_response, state_response
+from .models import CLIENT_MESSAGE, StreamAuth, StreamTarget, check_response, state_json
 
 __all__ = [
     "CLOCK_DRIFT",
@@ -157,7 +157,7 @@ class StateCache:
         self._lock = asyncio.Lock()
 
     def _read(self) -> str:
-        body = state_response(self._twin.state()).model_dump_json()
+        body = state_json(self._twin.state())  # state_response(...).model_dump_json()
         return body[1:]  # without "{": the pusher puts its own keys first
 
     async def latest(self, max_age: float) -> str:
