@@ -12,10 +12,10 @@ batch code's bits; ``tests/test_jit`` compares them.
 Python function whose globals see the compiled callees, so the Python functions
 themselves stay as they are (numba is imported only when kernels are asked for: the
 command line does not pay for it); :func:`ready` gives them to library functions
-that use them once something (the guard of a control loop) has compiled them. The
-compiled kernels release the GIL (they touch no Python object), so threads may run
-them on disjoint rows at once; :func:`inline` marks the few callees a hot loop
-should have inlined. Without numba, or with the environment variable
+that use them once something (the guard of a control loop) has compiled them. A
+kernel marked by :func:`nogil` releases the GIL (kernels touch no Python object), so
+threads may run it on disjoint rows at once; :func:`inline` marks the few callees a
+hot loop should have inlined. Without numba, or with the environment variable
 ``SPM_PIN_JIT=0``, it gives the Python functions: same results, slower.
 """
 
@@ -28,7 +28,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["ENV_VARIABLE", "available", "inline", "kernels", "ready"]
+__all__ = ["ENV_VARIABLE", "available", "inline", "kernels", "nogil", "ready"]
 
 #: Set to ``0`` to run the Python kernels even where numba is installed.
 ENV_VARIABLE = "SPM_PIN_JIT"
@@ -42,6 +42,19 @@ _originals: list[Callable[..., Any]] = []
 _INLINE = "_spm_pin_jit_inline"
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+_NOGIL = "_spm_pin_jit_nogil"
+
+
+def nogil(function: F) -> F:
+    """Mark a kernel to release the GIL while it runs (numba's ``nogil=True``),
+    returned unchanged: threads may then run it on disjoint data at once. Only for
+    long calls: a thread that gives the GIL up must win it back, which, beside a busy
+    thread, can take the interpreter's switch interval (5 ms), so many short calls
+    would each risk that wait."""
+    setattr(function, _NOGIL, True)
+    return function
 
 
 def inline(function: F) -> F:
@@ -125,7 +138,8 @@ def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
     with warnings.catch_warnings():  # a read-only install cannot cache: fine
         warnings.simplefilter("ignore", numba.NumbaWarning)
         how = "always" if getattr(function, _INLINE, False) else "never"
-        compiled: Callable[..., Any] = numba.njit(cache=True, nogil=True, inline=how)(clone)
+        free = bool(getattr(function, _NOGIL, False))
+        compiled: Callable[..., Any] = numba.njit(cache=True, nogil=free, inline=how)(clone)
     return compiled
 
 

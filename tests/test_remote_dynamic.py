@@ -227,3 +227,49 @@ def test_a_streaming_client_that_goes_quiet_stops_the_twin(
     state = _settle(http)
     # It moved with the goals, then held where it was when stopped.
     assert 0.5 * acked[-1] < state["theta_deg"][0] <= acked[-1] + 0.5, (state, acked)
+
+
+def test_at_rest_the_exact_distance_is_kept_while_the_angles_only_round(
+    robot: spm.SPMRobot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The exact smallest link distance (the costly part) is computed at most every
+    ``distance_interval`` while a twin at rest still creeps onto its goal, and once
+    settled (its angles move by rounding alone) kept: exact where it stands; a move to
+    a new place computes it again."""
+    from spm_pin import collision
+    from spm_pin.remote import _motion
+
+    exact: list[np.ndarray] = []
+    original = collision.check_input
+
+    def counting(theta: Any, *args: Any, **kwargs: Any) -> Any:
+        if kwargs.get("distances", True):
+            exact.append(np.array(theta, dtype=float))
+        return original(theta, *args, **kwargs)
+
+    monkeypatch.setattr(collision, "check_input", counting)
+    with DynamicBackend(robot=robot) as twin:
+        for goal_deg in (SAFE_DEG, [10.0, 20.0, -15.0]):
+            twin.move(np.radians(goal_deg))
+            _wait_for(lambda: not twin.state().moving, SETTLE_TIMEOUT)
+            start, before = time.monotonic(), len(exact)
+            while time.monotonic() - start < 0.5:  # still creeping onto the goal
+                assert not twin.state().moving
+                time.sleep(0.005)
+            rate_limited = 0.5 / twin.distance_interval + 2
+            assert len(exact) - before <= rate_limited
+            time.sleep(2.0)  # settled: the angles move by rounding alone
+            before = len(exact)
+            states = []
+            for _ in range(15):
+                states.append(twin.state())
+                time.sleep(0.02)
+            assert len(exact) - before <= 1  # once at most, not at every read
+            kept = exact[-1]
+            for state in states:
+                assert not state.moving
+                assert np.max(np.abs(state.theta - kept)) <= _motion.REST_ANGLE
+                assert state.min_distance == states[0].min_distance
+            truth = original(kept, robot).min_distance
+            assert states[-1].min_distance == truth  # the exact distance where it was
+        assert not np.allclose(exact[0], exact[-1])  # the move computed it again

@@ -26,7 +26,7 @@ forward kinematics; a singularity) and returns how many steps it completed: the
 numpy loop goes on from there with the state it left, so the results, the errors and
 the ends are those of the numpy loop. A step of one row (:func:`_advance_row`)
 depends on no other row, so the caller may run the period on chunks of rows in
-threads (the compiled kernels release the GIL). Nothing here checks its arguments:
+threads (:func:`period` releases the GIL). Nothing here checks its arguments:
 the caller passes C-contiguous float arrays.
 """
 
@@ -224,6 +224,7 @@ def _commit_row(
             R[row, j, m] = R_next[row, j, m]
 
 
+@_jit.nogil
 def period(
     theta: FloatArray,
     speed: FloatArray,

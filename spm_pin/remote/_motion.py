@@ -13,7 +13,10 @@ the speed and acceleration between goals); a streamed goal (with ``previous`` an
 The derived state (orientation, dexterity, colliding pairs) is computed when read, for
 the input angles the twin has then; the exact smallest link distance, the costly part
 (about 20 ms), is computed again at most every ``distance_interval`` seconds while the
-twin moves, and exactly at rest.
+angles change (also while a twin that counts as at rest still creeps onto its goal),
+and kept where they stay: within :data:`REST_ANGLE` of the angles where it was
+computed (a simulation at rest still moves them by rounding). So at rest the distance
+is exact, from at most ``distance_interval`` seconds after the twin stopped.
 """
 
 from __future__ import annotations
@@ -45,6 +48,11 @@ PATH_CHECK = "path"
 SETTLED_ANGLE = math.radians(0.5)
 #: [rad/s], see SETTLED_ANGLE.
 SETTLED_SPEED = math.radians(2.0)
+#: [rad]: at rest, angles within this of those where the smallest link distance was
+#: computed keep it (a simulation at rest moves them by rounding, about 1e-19 rad a
+#: period: the links move by some 1e-13 m at most, far below the distance's
+#: tolerance); beyond it the distance is computed again.
+REST_ANGLE = 1e-12
 
 
 class MotionTwin(GuardedTwin):
@@ -104,7 +112,8 @@ class MotionTwin(GuardedTwin):
         self._closing = threading.Event()
         self._thread: threading.Thread | None = None
         self._derived: tuple[bytes, TwinState] | None = None
-        self._distance: tuple[float, float] | None = None  # (monotonic time, distance)
+        # (monotonic time, distance, the angles [rad]) of the last exact distance
+        self._distance: tuple[float, float, FloatArray] | None = None
 
     # ---------------------------------------------------------------- the loop
     def _start_loop(self) -> None:
@@ -197,11 +206,14 @@ class MotionTwin(GuardedTwin):
                 now = time.monotonic()
                 known = None
                 recent = self._distance
-                if moving and recent is not None and now - recent[0] < self.distance_interval:
+                if recent is not None and (
+                    now - recent[0] < self.distance_interval
+                    or float(np.max(np.abs(theta - recent[2]))) <= REST_ANGLE
+                ):
                     known = recent[1]
                 derived = self._compute_state(theta, known)
                 if known is None:
-                    self._distance = (now, derived.min_distance)
+                    self._distance = (now, derived.min_distance, theta)
                 self._derived = (key, derived)
         return dataclasses.replace(
             derived,
