@@ -38,13 +38,11 @@ _cache: dict[tuple[Callable[..., Any], ...], dict[str, Callable[..., Any]]] = {}
 #: Compiled twins by the id of their Python function (kept alive by ``_originals``).
 _compiled: dict[int, Callable[..., Any]] = {}
 _originals: list[Callable[..., Any]] = []
-#: The attribute :func:`inline` sets on a function.
+#: The attributes :func:`inline` and :func:`nogil` set on a function.
 _INLINE = "_spm_pin_jit_inline"
+_NOGIL = "_spm_pin_jit_nogil"
 
 F = TypeVar("F", bound=Callable[..., Any])
-
-
-_NOGIL = "_spm_pin_jit_nogil"
 
 
 def nogil(function: F) -> F:
