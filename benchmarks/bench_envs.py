@@ -82,7 +82,6 @@ from spm_pin.envs import (  # noqa: E402
     OrientEnv,
     OrientSettings,
     OrientVectorEnv,
-    _dynamic,
 )
 from spm_pin.envs._safe_lookup import SafeLookup  # noqa: E402
 from spm_pin.kinematics import forward_kinematics  # noqa: E402
@@ -259,8 +258,7 @@ def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
         env.core.threads = threads
         env.reset(seed=SEED)
         timed = time_call(_stepper(env, n), repeats=sizes.dynamic_repeats)
-        used = min(threads or _dynamic._cores(), max(1, n // _dynamic.THREADED_ROWS))
-        out[key] = {**timed.timing.summary(items=n), "n": n, "threads": used}
+        out[key] = {**timed.timing.summary(items=n), "n": n, "threads": env.core.chunks(n)}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
     for key, settings in (("single", plain), ("single_cover_only", only)):
         single = OrientDynamicEnv(settings, max_steps=10**7)

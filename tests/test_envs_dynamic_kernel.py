@@ -228,6 +228,12 @@ def test_threads_step_as_one_thread(actuation: str) -> None:
     n = 2 * THREADED_ROWS + 37
     made = [OrientDynamicVectorEnv(n, actuation=actuation, max_steps=1000) for _ in range(2)]
     made[0].core.threads, made[1].core.threads = 2, 1
+    assert (made[0].core.chunks(n), made[1].core.chunks(n)) == (2, 1)
+    assert made[0].core.chunks(2 * THREADED_ROWS - 1) == 1  # a chunk holds 256 rows
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(spm.InputError, match="threads"):
+            made[0].core.threads = bad  # type: ignore[assignment]
+    assert made[0].core.threads == 2  # a refused value leaves it as it was
     chunked: list[int] = []
     original = made[0].core._threaded_period
 

@@ -189,11 +189,37 @@ class DynamicCore(OrientCore):
         #: The compiled period where numba is installed, not switched off
         #: (``SPM_PIN_JIT=0``) and the dynamics run compiled; False: the loop alone.
         self.fused = True
-        #: Threads that share a compiled period of at least :data:`THREADED_ROWS`
-        #: rows, in contiguous chunks (the kernel releases the GIL; the results are
-        #: one thread's, bit for bit); None: one per core this process may use.
-        self.threads: int | None = None
+        self._threads: int | None = None
         self._fused_kernel: Any = None
+
+    @property
+    def threads(self) -> int | None:
+        """Threads that share a compiled period of at least 2 :data:`THREADED_ROWS`
+        rows, in contiguous chunks (the kernel releases the GIL; the results are one
+        thread's, bit for bit); None (the default): one per core this process may use.
+
+        Raises:
+            InputError: on setting anything but None or a positive int.
+        """
+        return self._threads
+
+    @threads.setter
+    def threads(self, value: int | None) -> None:
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, int) or value < 1
+        ):
+            raise InputError(
+                f"threads must be None or a positive int, got {value!r}",
+                argument="threads",
+                value=value,
+            )
+        self._threads = value
+
+    def chunks(self, rows: int) -> int:
+        """Into how many chunks (threads) a compiled period of ``rows`` rows is cut:
+        at most :attr:`threads`, each of at least :data:`THREADED_ROWS` rows; 1: one
+        call."""
+        return max(1, min(self._threads or _cores(), rows // THREADED_ROWS))
 
     def reset_rows(self, rows: IntArray, rngs: list[np.random.Generator]) -> None:
         """Start new episodes in ``rows`` at rest, each servo's goal where it stands."""
@@ -269,9 +295,8 @@ class DynamicCore(OrientCore):
             x.dtype == np.float64 and x.flags.c_contiguous for x in arrays
         ):
             return 0
-        n = state[0].shape[0]
-        chunks = min(self.threads or _cores(), n // THREADED_ROWS)
-        if chunks <= 1:
+        chunks = self.chunks(state[0].shape[0])
+        if chunks == 1:
             return self._call_period(kernel, state, drive, records)
         return self._threaded_period(kernel, state, drive, records, chunks)
 
