@@ -185,13 +185,20 @@ def _timed_once(fn: Callable[[], T]) -> tuple[float, T]:
     return elapsed, value
 
 
-def time_call(fn: Callable[[], T], *, repeats: int, warmup: int = 1) -> Timed[T]:
+def time_call(
+    fn: Callable[[], T], *, repeats: int, warmup: int = 1, collect_each: bool = True
+) -> Timed[T]:
     """Time ``fn()`` ``repeats`` times after ``warmup`` untimed calls.
 
     Args:
         fn: The call to time (e.g. one batch call of the public API).
         repeats: Number of timed calls (>= 1).
         warmup: Number of untimed calls first (caches, lazy imports, allocations).
+        collect_each: Collect garbage before every sample (calls of milliseconds or
+            more: each starts from the same heap). False: once before the samples,
+            which then run back to back with the collector off, as ``timeit`` times
+            (calls of microseconds: a full collection before each would leave the
+            CPU's caches cold and time that, not the call).
 
     Returns:
         The samples and the value of the last call.
@@ -204,7 +211,8 @@ def time_call(fn: Callable[[], T], *, repeats: int, warmup: int = 1) -> Timed[T]
     elapsed, value = _timed_once(fn)
     samples = [elapsed]
     for _ in range(repeats - 1):
-        gc.collect()
+        if collect_each:
+            gc.collect()
         elapsed, value = _timed_once(fn)
         samples.append(elapsed)
     return Timed(Timing(tuple(samples)), value)

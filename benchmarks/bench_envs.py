@@ -49,6 +49,11 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    <= 20 us, both with cover_only (its fastest safety check; section 4 has them
    with cover_only too, beside the rows without a cover).
 
+Batched steps are timed with a garbage collection before each sample; single steps
+(ours and MuJoCo's alike) back to back with the collector off after one collection,
+as ``timeit`` times: a full collection of a heap holding thousands of robots before
+each step of some microseconds would leave the CPU's caches cold and time that.
+
 MuJoCo is optional: without it, ``mujoco_peer`` says so and the rest runs.
 """
 
@@ -263,7 +268,9 @@ def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
     for key, settings in (("single", plain), ("single_cover_only", only)):
         single = OrientDynamicEnv(settings, max_steps=10**7)
         single.reset(seed=SEED)
-        timed = time_call(_stepper(single, 0), repeats=sizes.dynamic_single_repeats)
+        timed = time_call(
+            _stepper(single, 0), repeats=sizes.dynamic_single_repeats, collect_each=False
+        )
         out[key] = {**timed.timing.summary(items=1), "n": 1}
     out["closure_error"] = closure
     out["physics_steps_per_env_step"] = single.core.substeps
@@ -285,7 +292,7 @@ def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
 
     single = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
     single.reset(seed=SEED)
-    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats)
+    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats, collect_each=False)
     out: dict[str, Any] = {
         "available": True,
         "method": "MujocoOrientEnv (benchmarks/_mujoco_env.py): urdf/spm.xml with position "
@@ -383,7 +390,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     cover["speed_ratio_vs_without"] = results["vector"]["median_s"] / cover["median_s"]
     single = OrientEnv(max_steps=10**7)
     single.reset(seed=SEED)
-    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats)
+    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats, collect_each=False)
     results["single"] = {**timed.timing.summary(items=1), "n": 1}
     peer_env = gymnasium.vector.SyncVectorEnv(
         [lambda: OrientEnv(max_steps=10**7) for _ in range(sizes.peer_batch)]

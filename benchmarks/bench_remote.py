@@ -47,7 +47,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import math
 import multiprocessing
+import os
 import socket
 import sys
 import time
@@ -125,24 +127,27 @@ def _serve(port: int) -> None:
 
 
 async def _read(url: str, stop: Any, ready: list[bool]) -> dict[str, Any]:
-    """One reader: count the states pushed until ``stop`` is set."""
+    """One reader: count (and decode) the states pushed until ``stop`` is set."""
     received, last_seq, dropped = 0, 0, 0
     start = time.perf_counter()
     async with connect(url, max_size=None) as ws:
         json.loads(await ws.recv())  # hello
         ready.append(True)
         start = time.perf_counter()
-        while not stop.is_set():
-            try:
-                text = await asyncio.wait_for(ws.recv(), 0.05)
-            except TimeoutError:
-                continue
-            except ConnectionClosed:
-                break
-            message = json.loads(text)
-            if message.get("type") == "state":
-                received += 1
-                last_seq, dropped = int(message["seq"]), int(message["dropped"])
+
+        async def watch() -> None:  # close when told (no timeout per message)
+            while not stop.is_set():
+                await asyncio.sleep(0.05)
+            await ws.close()
+
+        watcher = asyncio.ensure_future(watch())
+        with contextlib.suppress(ConnectionClosed):
+            async for text in ws:
+                message = json.loads(text)
+                if message.get("type") == "state":
+                    received += 1
+                    last_seq, dropped = int(message["seq"]), int(message["dropped"])
+        watcher.cancel()
     return {
         "received": received,
         "pushed": last_seq,
@@ -162,7 +167,39 @@ def _readers(url: str, count: int, ready: Any, stop: Any, conn: Connection) -> N
         ready.set()
         return list(await asyncio.gather(*tasks))
 
-    conn.send(asyncio.run(main()))
+    cpu = time.process_time()
+    counts = _run(main())
+    conn.send({"counts": counts, "cpu_s": time.process_time() - cpu})
+
+
+def _run(main: Any) -> Any:
+    """``asyncio.run`` on uvloop's event loop when it is installed (as the server's
+    uvicorn does): the readers' and the client's processes then cost less CPU, which
+    on a small machine they share with the server."""
+    try:
+        import uvloop
+    except ImportError:
+        return asyncio.run(main)
+    return uvloop.run(main)
+
+
+def _event_loop() -> str:
+    """The event loop of every process here (uvicorn's choice too)."""
+    try:
+        import uvloop  # noqa: F401
+    except ImportError:
+        return "asyncio"
+    return "uvloop"
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User and system CPU seconds of process ``pid`` so far (Linux; NaN elsewhere)."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return math.nan
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 # --------------------------------------------------------------------- controller
@@ -294,6 +331,7 @@ async def _control(
 def bench_stream(
     base: str,
     ws_url: str,
+    server: int,
     rate: float,
     seconds: float,
     readers: int,
@@ -303,7 +341,8 @@ def bench_stream(
     timed: bool = True,
 ) -> dict[str, Any]:
     """One controlling client at ``rate`` with ``readers`` readers at ``reader_rate``
-    (default: the same rate); its targets timed (``t``) or not."""
+    (default: the same rate); its targets timed (``t``) or not. ``server``: the
+    server's process id (its CPU time is reported)."""
     ctx = multiprocessing.get_context("spawn")
     ready, stop = ctx.Event(), ctx.Event()
     receiver, sender = ctx.Pipe(duplex=False)
@@ -318,10 +357,19 @@ def bench_stream(
             raise RuntimeError("the readers did not connect")
         count = max(round(seconds * rate), 2)
         start = np.asarray(start_deg, dtype=float)
-        result = asyncio.run(_control(url, rate, count, start, timed=timed))
+        wall, cpu, served = time.perf_counter(), time.process_time(), _cpu_seconds(server)
+        result: dict[str, Any] = _run(_control(url, rate, count, start, timed=timed))
+        cpu_s = {
+            "wall": time.perf_counter() - wall,
+            "server": _cpu_seconds(server) - served,
+            "controller": time.process_time() - cpu,
+        }
     finally:
         stop.set()
-    counts: list[dict[str, Any]] = receiver.recv() if receiver.poll(START_TIMEOUT_S) else []
+    sent: dict[str, Any] = receiver.recv() if receiver.poll(START_TIMEOUT_S) else {}
+    counts: list[dict[str, Any]] = sent.get("counts", [])
+    # The readers' process: its whole run (connected before, closing after the stream).
+    result["cpu_s"] = {**cpu_s, "readers": sent.get("cpu_s", math.nan)}
     process.join(START_TIMEOUT_S)
     if process.is_alive():
         process.terminate()
@@ -420,13 +468,20 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
         start_deg = np.zeros(3)
         for rate in RATES:
             stream = bench_stream(
-                base, ws_url, rate, float(sizes["seconds"]), int(sizes["readers"]), start_deg
+                base,
+                ws_url,
+                process.pid,
+                rate,
+                float(sizes["seconds"]),
+                int(sizes["readers"]),
+                start_deg,
             )
             results[f"stream_{rate:g}"] = stream
             start_deg = np.asarray(stream["final_deg"])
         untimed = bench_stream(
             base,
             ws_url,
+            process.pid,
             TARGET_RATE,
             float(sizes["seconds"]),
             int(sizes["readers"]),
@@ -437,6 +492,7 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
         results[f"stream_{TARGET_RATE:g}_readers_{SLOW_READERS_HZ:g}"] = bench_stream(
             base,
             ws_url,
+            process.pid,
             TARGET_RATE,
             float(sizes["seconds"]),
             int(sizes["readers"]),
@@ -463,7 +519,7 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
     return {
         "benchmark": "remote",
         "machine": machine_info(
-            ("numpy", "pin", "coal", "fastapi", "uvicorn", "httpx", "websockets"),
+            ("numpy", "pin", "coal", "fastapi", "uvicorn", "httpx", "websockets", "uvloop"),
             {"spm_pin": spm.__version__},
         ),
         "config": {
@@ -476,6 +532,7 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             "drain_s": DRAIN_S,
             "threads_limited_before_numpy": THREADS_LIMITED,
             "processes": "server, readers and the measuring client each in its own process",
+            "event_loop": _event_loop(),
             "timing": "perf_counter from a request's send to its answer in the client; "
             "median/p95/p99",
         },
@@ -490,6 +547,16 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             }
         ),
     }
+
+
+def _cpu_line(cpu: dict[str, float] | None) -> str:
+    """The processes' CPU seconds over a stream, when measured."""
+    if not cpu:
+        return ""
+    return (
+        f"; CPU over {cpu['wall']:.1f} s: server {cpu['server']:.1f} s, readers "
+        f"{cpu['readers']:.1f} s, client {cpu['controller']:.1f} s"
+    )
 
 
 def report(payload: dict[str, Any]) -> str:
@@ -540,7 +607,7 @@ def report(payload: dict[str, Any]) -> str:
             f"at {r.get('rate_hz', s['rate_hz']):g} Hz: "
             f"{format_count(r['received'])} states received of {format_count(r['pushed'])} "
             f"pushed ({format_rate(r['received_per_second_each'])} each), "
-            f"{format_count(r['dropped'])} ticks dropped by the server"
+            f"{format_count(r['dropped'])} ticks dropped by the server" + _cpu_line(s.get("cpu_s"))
         )
     targets = payload["targets"]
     checks = [

@@ -5,6 +5,7 @@ No timing is asserted: only the structure of the output and the accuracy figures
 
 from __future__ import annotations
 
+import gc
 import importlib.util
 import io
 import json
@@ -139,6 +140,22 @@ def test_common_statistics_and_json(tmp_path: Path) -> None:
     timed = _common.time_call(lambda: 7, repeats=3)
     assert timed.value == 7
     assert len(timed.timing.samples) == 3
+    # A full collection before each sample, or once before all (the collector stays on).
+    full: list[int] = []
+
+    def count(phase: str, info: dict[str, int]) -> None:
+        if phase == "start" and info["generation"] == 2:
+            full.append(1)
+
+    gc.callbacks.append(count)
+    try:
+        for collect_each, collections in ((True, 4), (False, 1)):
+            full.clear()
+            timed = _common.time_call(lambda: 7, repeats=4, collect_each=collect_each)
+            assert len(timed.timing.samples) == 4 and len(full) == collections
+    finally:
+        gc.callbacks.remove(count)
+    assert gc.isenabled()
     out = _common.write_json(tmp_path / "sub" / "x.json", {"a": np.float64(np.nan), "b": (1, 2)})
     assert json.loads(out.read_text()) == {"a": None, "b": [1, 2]}
 
@@ -508,6 +525,7 @@ def test_quick_remote_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert "Targets" in capsys.readouterr().out
     data = json.loads(out.read_text())
     assert data["benchmark"] == "remote" and data["config"]["quick"] is True
+    assert data["config"]["event_loop"] in {"asyncio", "uvloop"}
     assert {"fastapi", "uvicorn", "httpx", "websockets"} <= set(data["machine"]["packages"])
     results = data["results"]
     streams = ("stream_100", "stream_1000", "stream_1000_untimed", "stream_1000_readers_100")
@@ -535,6 +553,9 @@ def test_quick_remote_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[st
         for connection in pushes["per_connection"]:
             assert 0 <= connection["received"] <= connection["pushed"], name
             assert connection["dropped"] >= 0, name
+        cpu = stream["cpu_s"]  # each process's CPU seconds over the stream (Linux)
+        assert cpu["wall"] >= sent / stream["rate_hz"] * 0.5 and cpu["controller"] > 0, name
+        assert cpu["server"] >= 0 and cpu["readers"] > 0, name
     for name in ("state", "command_100", "command_1000", "move_100", "move_1000"):
         assert results["peer"][name]["p95_s"] >= results["peer"][name]["median_s"] > 0, name
     assert set(data["targets"]) == {

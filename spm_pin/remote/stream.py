@@ -243,8 +243,12 @@ class _Session:
         return bool(self.hub.lease.holder == self.id)
 
     def _lease_members(self) -> str:
-        lease = self.hub.lease
-        return f'"lease":{{"held":{json.dumps(lease.held)},"yours":{json.dumps(self.holds)}}}'
+        holder = self.hub.lease.holder
+        if holder is None:
+            return '"lease":{"held":false,"yours":false}'
+        if holder == self.id:
+            return '"lease":{"held":true,"yours":true}'
+        return '"lease":{"held":true,"yours":false}'
 
     async def send(self, message: dict[str, Any]) -> None:
         text = json.dumps(message, allow_nan=False)
