@@ -580,6 +580,9 @@ def test_a_change_during_a_state_read_is_read_again() -> None:
             self.reads = 0
             self.entered, self.release = threading.Event(), threading.Event()
 
+        def state_quick(self) -> Any:
+            return None  # read in a worker thread: the race is that read's
+
         def state(self) -> Any:
             self.reads += 1
             result = super().state()
@@ -611,4 +614,108 @@ def test_a_change_during_a_state_read_is_read_again() -> None:
     theta = json.loads("{" + third)["theta_deg"]
     np.testing.assert_allclose(theta, np.degrees(goal), rtol=0.0, atol=1e-9)
     assert json.loads("{" + first)["theta_deg"] == [0.0, 0.0, 0.0]
+    twin.close()
+
+
+def test_state_quick_is_the_state_or_none_and_never_waits(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``state_quick`` (read on the server's event loop) gives what ``state`` gives,
+    field for field, where no exact distance is due; None where one is (the first read
+    after an HTTP goal), and None at once while another thread holds the twin's lock
+    (a goal's refusal report may hold it for milliseconds)."""
+    import dataclasses
+    import threading
+
+    from spm_pin.collision import check_input
+    from spm_pin.remote import kinematic
+
+    def same(a: Any, b: Any) -> bool:
+        return all(
+            np.array_equal(getattr(a, f.name), getattr(b, f.name))
+            for f in dataclasses.fields(a)
+            if f.name != "time"
+        )
+
+    twin = KinematicBackend()
+    goal = np.radians([4.0, 2.0, 1.0])
+    twin.move(goal)  # an HTTP goal: its state is computed and kept
+    kept = twin.state_quick()
+    assert kept is not None and same(kept, twin.state())
+    # Streamed goals within the distance interval: the last distance, no computation.
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 0.0)
+    path = np.radians([[4.5, 2.2, 1.1], [5.0, 2.4, 1.2]])
+    twin.command(path[0])
+    assert twin.state_quick() is None  # past the interval: the distance is due
+    first = twin.state()  # exact
+    assert first.min_distance == check_input(path[0], twin.robot).min_distance
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 60.0)
+    twin.command(path[1])
+    quick = twin.state_quick()
+    assert quick is not None and np.array_equal(quick.theta, path[1])
+    assert quick.min_distance == first.min_distance and same(quick, twin.state())
+    # Past the interval, without a child process: the distance is due.
+    monkeypatch.setattr(kinematic, "DISTANCE_INTERVAL", 0.0)
+    twin.command(path[0])
+    assert twin.state_quick() is None
+    exact = twin.state()
+    assert exact.min_distance == check_input(path[0], twin.robot).min_distance
+    # Another thread holds the twin's lock: None at once.
+    twin._lock.acquire()
+    try:
+        result: list[Any] = []
+        reader = threading.Thread(target=lambda: result.append(twin.state_quick()))
+        start = time.monotonic()
+        reader.start()
+        reader.join(5.0)
+        assert not reader.is_alive() and result == [None]
+        assert time.monotonic() - start < 1.0
+    finally:
+        twin._lock.release()
+    assert twin.state_quick() is not None  # kept again, lock free
+
+
+def test_state_cache_reads_a_quick_twin_on_the_event_loop() -> None:
+    """StateCache reads ``state_quick`` on the event loop's thread; where it gives
+    None, ``state`` in a worker thread; the text is the state's either way."""
+    import asyncio
+    import threading
+
+    from spm_pin.remote.models import state_json
+    from spm_pin.remote.stream import StateCache
+
+    class CountingTwin(KinematicBackend):
+        def __init__(self) -> None:
+            super().__init__()
+            self.quick_ok = True
+            self.threads: dict[str, list[str]] = {"quick": [], "state": []}
+
+        def state_quick(self) -> Any:
+            self.threads["quick"].append(threading.current_thread().name)
+            return super().state_quick() if self.quick_ok else None
+
+        def state(self) -> Any:
+            self.threads["state"].append(threading.current_thread().name)
+            return super().state()
+
+    twin = CountingTwin()
+    cache = StateCache(twin)
+
+    async def run() -> tuple[str, str, str]:
+        loop_thread = threading.current_thread().name
+        first = await cache.latest(0.0)
+        twin.quick_ok = False
+        cache.invalidate()
+        second = await cache.latest(0.0)
+        return loop_thread, first, second
+
+    loop_thread, first, second = asyncio.run(run())
+    assert twin.threads["quick"] == [loop_thread, loop_thread]
+    assert len(twin.threads["state"]) == 1 and twin.threads["state"][0] != loop_thread
+    expected = json.loads(state_json(twin.state()))
+    for text in (first, second):
+        got = json.loads("{" + text)
+        assert {k: v for k, v in got.items() if k != "time"} == {
+            k: v for k, v in expected.items() if k != "time"
+        }
     twin.close()

@@ -8,10 +8,12 @@ distance, is computed on a robot of its own and, while goals stream in, at most 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import threading
 import time
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,6 +32,18 @@ __all__ = ["DISTANCE_INTERVAL", "KinematicBackend"]
 #: While goals stream in (``command``), the kinematic twin's exact smallest link
 #: distance is computed again at most this often [s] (it costs ~15 ms).
 DISTANCE_INTERVAL = 0.1
+
+
+@contextlib.contextmanager
+def _held(lock: threading.Lock, quick: bool) -> Iterator[bool]:
+    """Hold ``lock`` for the block; ``quick``: only if it is free now (the block is
+    told whether it holds it)."""
+    held = lock.acquire(blocking=not quick)
+    try:
+        yield held
+    finally:
+        if held:
+            lock.release()
 
 
 class KinematicBackend(GuardedTwin):
@@ -122,12 +136,15 @@ class KinematicBackend(GuardedTwin):
             distance, self._nearest = exact_min_distance(self._distance_robot, theta, self._nearest)
             return distance
 
-    def _worker_takes(self, theta: FloatArray) -> bool:
+    def _worker_takes(self, theta: FloatArray, quick: bool = False) -> bool:
         """Whether the child process computes the distance at ``theta`` (asked now,
-        or a request under way); False without one (or before it is ready)."""
+        or a request under way); False without one (or before it is ready; or,
+        ``quick``, while a distance is computed in process)."""
         if not self.distance_process:
             return False
-        with self._distance_lock:
+        with _held(self._distance_lock, quick) as held:
+            if not held:
+                return False
             if self._worker is None:
                 self._worker = DistanceWorker(self.design)
             worker = self._worker
@@ -165,12 +182,32 @@ class KinematicBackend(GuardedTwin):
         """
         with self._lock:
             theta = self._theta
-        return self._state_at(theta)
+        state = self._state_at(theta, quick=False)
+        assert state is not None  # computed when not quick
+        return state
 
-    def _state_at(self, theta: FloatArray) -> TwinState:
+    def state_quick(self) -> TwinState | None:
+        """:meth:`state` when it needs no exact distance computation: kept since the
+        last read, or, while goals stream in, with the distance the child process
+        computed or one at most :data:`DISTANCE_INTERVAL` old (what :meth:`state`
+        then gives too). That costs a fraction of a millisecond, so a server may
+        read it on its event loop. None where :meth:`state` would compute the
+        distance (milliseconds): read that one with :meth:`state`.
+        """
+        with _held(self._lock, quick=True) as held:
+            if not held:  # a goal is being checked (its report may take milliseconds)
+                return None
+            theta = self._theta
+        return self._state_at(theta, quick=True)
+
+    def _state_at(self, theta: FloatArray, *, quick: bool) -> TwinState | None:
         """The state at ``theta``, an accepted goal (the current one, or one that a
-        later goal has replaced meanwhile); kept when it is still the current one."""
-        with self._lock:
+        later goal has replaced meanwhile); kept when it is still the current one.
+        ``quick``: None instead of computing the exact distance or waiting for a
+        lock."""
+        with _held(self._lock, quick) as held:
+            if not held:
+                return None
             if self._state is not None and self._theta is theta:
                 return dataclasses.replace(self._state, time=time.time(), stops=self.stops)
         now = time.monotonic()
@@ -180,15 +217,19 @@ class KinematicBackend(GuardedTwin):
         if (
             self._streaming
             and recent is not None
-            and (now - recent[0] < DISTANCE_INTERVAL or self._worker_takes(theta))
+            and (now - recent[0] < DISTANCE_INTERVAL or self._worker_takes(theta, quick))
         ):
             # Goals streaming in: at most DISTANCE_INTERVAL old, or the child
             # process computes the next one meanwhile.
             min_distance = recent[1]
+        elif quick:
+            return None
         else:
             min_distance = self._min_distance(theta)
             self._last_distance = (time.monotonic(), min_distance)  # its age counts from now
-        with self._lock:
+        with _held(self._lock, quick) as held:
+            if not held:
+                return None
             state = self._compute_state(theta, min_distance)
             if self._theta is theta:
                 self._state = state
@@ -303,9 +344,10 @@ class KinematicBackend(GuardedTwin):
             GoalRefusedError: the goal is unsafe (an UnsafeCommandError; its
                 ``report`` says why); the state is unchanged.
         """
-        return self._state_at(
-            self._command(theta, previous, before_previous, period, previous_period)
-        )
+        goal = self._command(theta, previous, before_previous, period, previous_period)
+        state = self._state_at(goal, quick=False)
+        assert state is not None  # computed when not quick
+        return state
 
     def stop(self, reason: str | None = None) -> TwinState:
         """Nothing is ever in motion in the kinematic twin: it holds still, counts

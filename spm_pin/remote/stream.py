@@ -14,7 +14,8 @@ Per connection two tasks run in the event loop: the receiver (this module's
 (a state every 1/rate seconds). The backend's calls take its lock and may take
 milliseconds: they run in worker threads, except a twin's ``command_quick`` (the
 guard's checks of a streamed goal, a fraction of a millisecond), which runs in the
-event loop. States come from one :class:`StateCache`
+event loop, and a twin's ``state_quick`` (a state read that needs no exact distance
+computation). States come from one :class:`StateCache`
 shared by every connection, so ten readers cost one backend read per period, not ten.
 
 The guard checks a streamed goal's speed and acceleration over the times between
@@ -142,9 +143,12 @@ class Lease:
 class StateCache:
     """The latest state as JSON text, shared by every connection.
 
-    Read from the backend (in a worker thread) at most once per ``max_age``
-    seconds asked for, however many connections ask; a read's age counts from when
-    it started. While a read is under way the pushers send the state read before it
+    Read from the backend at most once per ``max_age`` seconds asked for, however
+    many connections ask; a read's age counts from when it started. A twin that can
+    answer quickly (``state_quick``: the kinematic twin while nothing costly is due)
+    is read on the event loop; otherwise, or when it cannot, in a worker thread
+    (the thread hop and the handover of the interpreter lock cost more than the
+    quick read). While a read is under way the pushers send the state read before it
     (its ``time`` says when) rather than wait: a slow read delays no push. A change
     (:meth:`invalidate`) during a read makes the next request read again.
     """
@@ -160,6 +164,13 @@ class StateCache:
         body = state_json(self._twin.state())  # state_response(...).model_dump_json()
         return body[1:]  # without "{": the pusher puts its own keys first
 
+    def _read_quick(self) -> str | None:
+        """The state read here on the event loop when the twin answers it quickly
+        (the kinematic twin's ``state_quick``: no distance to compute), else None."""
+        quick = getattr(self._twin, "state_quick", None)
+        state = None if quick is None else quick()
+        return None if state is None else state_json(state)[1:]
+
     async def latest(self, max_age: float) -> str:
         """The state's JSON members (the object without its opening brace)."""
         if time.monotonic() - self._read_at < max_age:
@@ -169,7 +180,8 @@ class StateCache:
         async with self._lock:
             if time.monotonic() - self._read_at >= max_age:
                 changes, started = self._changes, time.monotonic()
-                self._text = await to_thread.run_sync(self._read)
+                text = self._read_quick()  # a fraction of a millisecond, or None
+                self._text = text if text is not None else await to_thread.run_sync(self._read)
                 # A change during the read may be missing from it: read again next.
                 self._read_at = started if self._changes == changes else -math.inf
         return self._text
