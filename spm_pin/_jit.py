@@ -17,10 +17,16 @@ kernel marked by :func:`nogil` releases the GIL (kernels touch no Python object)
 threads may run it on disjoint rows at once; :func:`inline` marks the few callees a
 hot loop should have inlined. Without numba, or with the environment variable
 ``SPM_PIN_JIT=0``, it gives the Python functions: same results, slower.
+
+The machine code is cached on disk (numba's cache, beside the sources) under each
+kernel's name and a digest of its code, of the kernels it calls and of the constants
+it names (:func:`_digest`): numba stamps a cache with the kernel's own file alone, so
+a change in another file would otherwise leave a caller's stale machine code in use.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import threading
 import types
@@ -38,6 +44,9 @@ _cache: dict[tuple[Callable[..., Any], ...], dict[str, Callable[..., Any]]] = {}
 #: Compiled twins by the id of their Python function (kept alive by ``_originals``).
 _compiled: dict[int, Callable[..., Any]] = {}
 _originals: list[Callable[..., Any]] = []
+#: The digest of each compiled function (by the id of its Python function): see
+#: :func:`_digest`.
+_digests: dict[int, str] = {}
 #: The attributes :func:`inline` and :func:`nogil` set on a function.
 _INLINE = "_spm_pin_jit_inline"
 _NOGIL = "_spm_pin_jit_nogil"
@@ -117,9 +126,81 @@ def kernels(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., 
         return out
 
 
+def _code_text(code: types.CodeType) -> list[str]:
+    """What a code object computes, as text: its bytecode, names and constants
+    (nested code objects the same way; frozensets sorted, so the text does not
+    depend on the interpreter's hash seed)."""
+    parts = [code.co_code.hex(), repr(code.co_names), repr(code.co_varnames)]
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            parts.extend(_code_text(const))
+        elif isinstance(const, frozenset):
+            parts.append(repr(sorted(repr(item) for item in const)))
+        else:
+            parts.append(repr(const))
+    return parts
+
+
+def _value_text(value: Any) -> str | None:
+    """A global value numba would freeze into machine code, as text (numbers,
+    strings, arrays and tuples of them); None for anything else (modules, classes,
+    functions: their text would not be the same in another process)."""
+    if isinstance(value, (bool, int, float, complex, str, bytes)):
+        return repr(value)
+    if isinstance(value, tuple):
+        items = [_value_text(item) for item in value]
+        return None if any(item is None for item in items) else f"({','.join(items)})"  # type: ignore[arg-type]
+    tobytes = getattr(value, "tobytes", None)
+    if callable(tobytes) and hasattr(value, "dtype") and hasattr(value, "shape"):
+        digest = hashlib.sha256(tobytes()).hexdigest()[:16]
+        return f"array({value.dtype},{value.shape},{digest})"
+    return None
+
+
+def _digest(function: Callable[..., Any]) -> str:
+    """A digest of what ``function`` compiles to: its code, its :func:`inline` and
+    :func:`nogil` marks, the digests of the compiled functions it calls and the
+    values of the other numbers, strings and tuples of its module that it names
+    (numba freezes them into the machine code).
+
+    numba's cache on disk is stamped with the source file of each function alone:
+    a caller compiled from one file keeps the machine code of its callees in
+    another file, and of constants computed from other modules, after they changed
+    (an editable install, a user's own kernel). The digest, part of the name the
+    cache is kept under, makes a change anywhere down the calls a new entry.
+    """
+    code: types.CodeType = function.__code__
+    parts = [
+        function.__module__,
+        function.__qualname__,
+        repr(getattr(function, _INLINE, False)),
+        repr(getattr(function, _NOGIL, False)),
+        repr(function.__defaults__),
+        *_code_text(code),
+    ]
+    names = set(code.co_names)
+    for const in code.co_consts:  # names used by nested code too
+        if isinstance(const, types.CodeType):
+            names.update(const.co_names)
+    namespace = function.__globals__
+    for name in sorted(names):
+        if name not in namespace:
+            continue
+        value = namespace[name]
+        callee = _digests.get(id(value))
+        if callee is not None:
+            parts.append(f"{name}={callee}")
+        else:
+            text = _value_text(value)
+            if text is not None:
+                parts.append(f"{name}={text}")
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
+
+
 def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
     """A numba twin of ``function``: a clone whose globals name the compiled twins of
-    the functions compiled before it (by identity), so the original stays Python."""
+    the functions compiled before it (by identity), so the original stays Python.
+    Its cache on disk is kept under its name and :func:`_digest`."""
     namespace = {
         name: _compiled.get(id(value), value) if callable(value) else value
         for name, value in function.__globals__.items()
@@ -131,7 +212,9 @@ def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
         function.__defaults__,
         function.__closure__,
     )
-    clone.__qualname__ = function.__qualname__
+    digest = _digest(function)
+    _digests[id(function)] = digest
+    clone.__qualname__ = f"{function.__qualname__}-{digest}"
     clone.__module__ = function.__module__
     with warnings.catch_warnings():  # a read-only install cannot cache: fine
         warnings.simplefilter("ignore", numba.NumbaWarning)

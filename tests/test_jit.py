@@ -266,3 +266,51 @@ def test_the_guards_one_call_a_cycle_equals_its_parts() -> None:
         assert np.array_equal(q, _configuration.rotation_configuration(values, rotation, legs))
         assert fast.collisions_at(q) == fast.collisions(values, rotation)
     assert 0 < reachable < 600 + 120
+
+
+_CACHE_RUNNER = """
+import sys
+sys.path.insert(0, sys.argv[1])
+import caller, callee
+from spm_pin import _jit
+g = _jit.kernels((callee.f, caller.g))["g"]
+print(g(1.0), sum(g.stats.cache_hits.values()))
+"""
+
+
+def test_the_cache_on_disk_follows_callees_in_other_files(tmp_path: os.PathLike[str]) -> None:
+    """A kernel cached on disk is compiled again when a function it calls, or a
+    constant it names, changes in another file (numba stamps its cache with the
+    kernel's own file alone); unchanged, the next process loads it from the cache."""
+    from pathlib import Path
+
+    root = Path(tmp_path)
+    callee, caller, runner = root / "callee.py", root / "caller.py", root / "run.py"
+    caller.write_text("from callee import SCALE, f\n\n\ndef g(x):\n    return f(x) * SCALE\n")
+    runner.write_text(_CACHE_RUNNER)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(root / "cache")}
+    env.pop(_jit.ENV_VARIABLE, None)
+    runs = [0]
+
+    def run(offset: float, scale: float) -> tuple[float, int]:
+        """g(1.0) = (1 + offset) * scale in a new process, and its cache hits."""
+        callee.write_text(f"SCALE = {scale!r}\n\n\ndef f(x):\n    return x + {offset!r}\n")
+        runs[0] += 1
+        stamp = callee.stat().st_mtime_ns + 10**9 * runs[0]  # a new stamp every time
+        os.utime(callee, ns=(stamp, stamp))
+        done = subprocess.run(
+            [sys.executable, str(runner), str(root)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env=env,
+            check=True,
+        )
+        value, hits = done.stdout.split()
+        return float(value), int(hits)
+
+    assert run(1.0, 2.0) == (4.0, 0)  # compiled, cached
+    assert run(1.0, 2.0) == (4.0, 1)  # unchanged: from the cache
+    assert run(2.0, 2.0)[0] == 6.0  # the callee changed
+    assert run(2.0, 3.0)[0] == 9.0  # a constant the caller names changed
+    assert run(2.0, 3.0) == (9.0, 1)
