@@ -149,7 +149,8 @@ def _value_text(value: Any) -> str | None:
         return repr(value)
     if isinstance(value, tuple):
         items = [_value_text(item) for item in value]
-        return None if any(item is None for item in items) else f"({','.join(items)})"  # type: ignore[arg-type]
+        texts = [text for text in items if text is not None]
+        return f"({','.join(texts)})" if len(texts) == len(items) else None
     tobytes = getattr(value, "tobytes", None)
     if callable(tobytes) and hasattr(value, "dtype") and hasattr(value, "shape"):
         digest = hashlib.sha256(tobytes()).hexdigest()[:16]
@@ -160,7 +161,7 @@ def _value_text(value: Any) -> str | None:
 def _digest(function: Callable[..., Any]) -> str:
     """A digest of what ``function`` compiles to: its code, its :func:`inline` and
     :func:`nogil` marks, the digests of the compiled functions it calls and the
-    values of the other numbers, strings and tuples of its module that it names
+    values of the numbers, strings, arrays and tuples of its module that it names
     (numba freezes them into the machine code).
 
     numba's cache on disk is stamped with the source file of each function alone:
