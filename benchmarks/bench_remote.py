@@ -46,6 +46,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib
+import importlib.util
 import json
 import math
 import multiprocessing
@@ -66,6 +68,9 @@ import httpx  # noqa: E402
 import numpy as np  # noqa: E402
 from websockets.asyncio.client import ClientConnection, connect  # noqa: E402
 from websockets.exceptions import ConnectionClosed  # noqa: E402
+
+#: The event loop of every process here, when installed (uvicorn takes it too).
+uvloop: Any = importlib.import_module("uvloop") if importlib.util.find_spec("uvloop") else None
 
 import spm_pin as spm  # noqa: E402
 from spm_pin.remote import KinematicBackend  # noqa: E402
@@ -176,20 +181,7 @@ def _run(main: Any) -> Any:
     """``asyncio.run`` on uvloop's event loop when it is installed (as the server's
     uvicorn does): the readers' and the client's processes then cost less CPU, which
     on a small machine they share with the server."""
-    try:
-        import uvloop
-    except ImportError:
-        return asyncio.run(main)
-    return uvloop.run(main)
-
-
-def _event_loop() -> str:
-    """The event loop of every process here (uvicorn's choice too)."""
-    try:
-        import uvloop  # noqa: F401
-    except ImportError:
-        return "asyncio"
-    return "uvloop"
+    return asyncio.run(main) if uvloop is None else uvloop.run(main)
 
 
 def _cpu_seconds(pid: int) -> float:
@@ -465,9 +457,19 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
     base, ws_url = f"http://127.0.0.1:{port}", f"ws://127.0.0.1:{port}"
     try:
         results: dict[str, Any] = {"get_state": bench_get_state(base, int(sizes["gets"]))}
+        # Each stream starts where the one before left the twin.
+        streams: list[tuple[str, float, dict[str, Any]]] = [
+            *((f"stream_{rate:g}", rate, {}) for rate in RATES),
+            (f"stream_{TARGET_RATE:g}_untimed", TARGET_RATE, {"timed": False}),
+            (
+                f"stream_{TARGET_RATE:g}_readers_{SLOW_READERS_HZ:g}",
+                TARGET_RATE,
+                {"reader_rate": SLOW_READERS_HZ},
+            ),
+        ]
         start_deg = np.zeros(3)
-        for rate in RATES:
-            stream = bench_stream(
+        for key, rate, options in streams:
+            results[key] = bench_stream(
                 base,
                 ws_url,
                 process.pid,
@@ -475,30 +477,9 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
                 float(sizes["seconds"]),
                 int(sizes["readers"]),
                 start_deg,
+                **options,
             )
-            results[f"stream_{rate:g}"] = stream
-            start_deg = np.asarray(stream["final_deg"])
-        untimed = bench_stream(
-            base,
-            ws_url,
-            process.pid,
-            TARGET_RATE,
-            float(sizes["seconds"]),
-            int(sizes["readers"]),
-            start_deg,
-            timed=False,
-        )
-        results[f"stream_{TARGET_RATE:g}_untimed"] = untimed
-        results[f"stream_{TARGET_RATE:g}_readers_{SLOW_READERS_HZ:g}"] = bench_stream(
-            base,
-            ws_url,
-            process.pid,
-            TARGET_RATE,
-            float(sizes["seconds"]),
-            int(sizes["readers"]),
-            np.asarray(untimed["final_deg"]),
-            reader_rate=SLOW_READERS_HZ,
-        )
+            start_deg = np.asarray(results[key]["final_deg"])
     finally:
         process.terminate()  # SIGTERM: uvicorn shuts down, the twin stops
         process.join(30)
@@ -532,7 +513,7 @@ def run(sizes: dict[str, float], *, quick: bool) -> dict[str, Any]:
             "drain_s": DRAIN_S,
             "threads_limited_before_numpy": THREADS_LIMITED,
             "processes": "server, readers and the measuring client each in its own process",
-            "event_loop": _event_loop(),
+            "event_loop": "asyncio" if uvloop is None else "uvloop",
             "timing": "perf_counter from a request's send to its answer in the client; "
             "median/p95/p99",
         },

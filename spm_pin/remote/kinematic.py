@@ -182,9 +182,7 @@ class KinematicBackend(GuardedTwin):
         """
         with self._lock:
             theta = self._theta
-        state = self._state_at(theta, quick=False)
-        assert state is not None  # computed when not quick
-        return state
+        return self._exact_state(theta)
 
     def state_quick(self) -> TwinState | None:
         """:meth:`state` when it needs no exact distance computation: kept since the
@@ -199,6 +197,12 @@ class KinematicBackend(GuardedTwin):
                 return None
             theta = self._theta
         return self._state_at(theta, quick=True)
+
+    def _exact_state(self, theta: FloatArray) -> TwinState:
+        """:meth:`_state_at` ``theta``, waiting and computing what it must."""
+        state = self._state_at(theta, quick=False)
+        assert state is not None  # only a quick read gives None
+        return state
 
     def _state_at(self, theta: FloatArray, *, quick: bool) -> TwinState | None:
         """The state at ``theta``, an accepted goal (the current one, or one that a
@@ -345,9 +349,7 @@ class KinematicBackend(GuardedTwin):
                 ``report`` says why); the state is unchanged.
         """
         goal = self._command(theta, previous, before_previous, period, previous_period)
-        state = self._state_at(goal, quick=False)
-        assert state is not None  # computed when not quick
-        return state
+        return self._exact_state(goal)
 
     def stop(self, reason: str | None = None) -> TwinState:
         """Nothing is ever in motion in the kinematic twin: it holds still, counts
