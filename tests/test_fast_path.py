@@ -129,7 +129,13 @@ def _same_verdict(a: object, b: object) -> bool:
         and _same(a.singularity_margin, b.singularity_margin)  # type: ignore[attr-defined]
         and _same(a.dexterity, b.dexterity)  # type: ignore[attr-defined]
         and np.array_equal(a.theta, b.theta)  # type: ignore[attr-defined]
+        and _same_rotation(a.R, b.R)  # type: ignore[attr-defined]
     )
+
+
+def _same_rotation(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Both None, or equal bits."""
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
 
 
 @pytest.mark.parametrize(
@@ -150,6 +156,9 @@ def test_guard_fast_verdict_equals_the_batch_verdict(
         fast = guard.static_verdict(goal)
         batch = guard._compute(goal[None])[0]
         assert _same_verdict(fast, batch), (goal, fast, batch)
+        # The rotation is forward_kinematics' own (home mode), bit for bit.
+        fk = spm.forward_kinematics(goal, robot.design)
+        assert _same_rotation(fast.R, np.asarray(fk.R) if bool(fk.reachable) else None), goal
         kinds["safe"] += fast.safe
         kinds["unreachable"] += not fast.reachable
         kinds["singular"] += any("singularity" in r for r in fast.reasons)

@@ -686,6 +686,8 @@ def test_a_child_process_computes_the_distances_of_a_stream(
         assert distance == check_input(theta, robot).min_distance
         assert any(np.array_equal(theta, goal) for goal in path)
         process = worker._process
+        if hasattr(os, "getpriority"):  # background work: the lowest priority
+            assert os.getpriority(os.PRIO_PROCESS, process.pid) == 19
     assert not process.is_alive() and twin._worker is None
     # In process from now on: exact at the goal.
     twin.command(path[0])

@@ -65,6 +65,9 @@ class Verdict:
         singularity_margin: Distance to singularity in [0, 1] (NaN if unreachable).
         dexterity: 1/kappa(J) in [0, 1] (NaN if unreachable).
         collisions: Colliding link pairs (with margin).
+        R: The platform rotation (3, 3) of the home assembly mode, as
+            ``forward_kinematics(theta).R`` gives it bit for bit; None where
+            unreachable.
     """
 
     theta: FloatArray
@@ -74,6 +77,7 @@ class Verdict:
     singularity_margin: float
     dexterity: float
     collisions: tuple[LinkPair, ...]
+    R: FloatArray | None = None
 
     def require(self) -> Verdict:
         """Return self when safe; else raise UnsafeCommandError with the reasons."""
@@ -254,7 +258,8 @@ class SafetyGuard:
             except SPMError as exc:  # as in _collisions
                 return (("model", f"error: {exc}"),)
 
-        return self._verdict(theta, reasons, True, reachable, margin, dexterity, collide)
+        R = None if rotation is None else np.array(rotation, dtype=float)
+        return self._verdict(theta, reasons, True, reachable, margin, dexterity, collide, R)
 
     def _remember(self, verdict: Verdict) -> None:
         self._cache[verdict.theta.tobytes()] = verdict
@@ -286,6 +291,7 @@ class SafetyGuard:
                     float(margin[k]),
                     float(dexterity[k]),
                     functools.partial(self._collisions, theta),
+                    fk.R[k].copy() if reachable[k] else None,
                 )
             )
         return verdicts
@@ -299,9 +305,11 @@ class SafetyGuard:
         margin: float,
         dexterity: float,
         collide: Callable[[], tuple[LinkPair, ...]],
+        R: FloatArray | None = None,
     ) -> Verdict:
         """The verdict from the limit reasons and the measures; ``collide`` runs the
-        collision check (only where the goal is reachable)."""
+        collision check (only where the goal is reachable); ``R``: the home-mode
+        rotation there."""
         limits = self.limits
         pairs: tuple[LinkPair, ...] = ()
         if not reachable:
@@ -329,6 +337,7 @@ class SafetyGuard:
             singularity_margin=margin,
             dexterity=dexterity,
             collisions=pairs,
+            R=R if reachable else None,
         )
 
     def _collisions(self, theta: FloatArray) -> tuple[LinkPair, ...]:

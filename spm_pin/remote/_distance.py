@@ -6,6 +6,8 @@ the interpreter lock); in the server's process they would stall its event loop. 
 server is copied) that builds its own robot of the design and keeps, as the twin
 did, the pair nearest last time, whose distance caps the search of the next minimum.
 
+The child runs at the lowest scheduling priority (:data:`NICENESS`): on a machine
+with few cores, a distance computed meanwhile does not hold up the server's answers.
 The worker answers one request at a time and never blocks its caller: ``request``
 sends input angles when no request is under way, ``latest`` gives the last answer.
 The child ends when the worker is closed or when its parent goes away (its pipe
@@ -17,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import math
 import multiprocessing
+import os
 import threading
 import time
 from multiprocessing.connection import Connection
@@ -36,6 +39,10 @@ LinkPair = tuple[str, str]
 
 #: Seconds the worker's child may take to start (import, build its robot).
 START_TIMEOUT = 60.0
+#: How much the child lowers its scheduling priority (``os.nice``; 19: the lowest).
+#: Its distances are background work: on a small machine the server's event loop,
+#: answering streamed goals within milliseconds, takes the CPU first.
+NICENESS = 19
 
 
 def exact_min_distance(
@@ -67,22 +74,23 @@ def _child(design: SPMDesign, conn: Connection) -> None:  # pragma: no cover - c
     """The worker's process: answer (theta, distance) for every theta received."""
     from ..collision import build_robot
 
+    if hasattr(os, "nice"):  # background work: the server's event loop goes first
+        with contextlib.suppress(OSError):
+            os.nice(NICENESS)
     robot = build_robot(design)
     nearest: LinkPair | None = None
-    conn.send("ready")
-    while True:
-        try:
+    with contextlib.suppress(EOFError, OSError):  # the parent closed the pipe or went away
+        conn.send("ready")
+        while True:
             theta = conn.recv()
-        except (EOFError, OSError):  # the parent closed the pipe or went away
-            return
-        if theta is None:
-            return
-        try:
-            distance, nearest = exact_min_distance(robot, np.asarray(theta), nearest)
-        except Exception as exc:
-            conn.send(("error", f"{type(exc).__name__}: {exc}"))
-            continue
-        conn.send((theta, distance))
+            if theta is None:
+                return
+            try:
+                distance, nearest = exact_min_distance(robot, np.asarray(theta), nearest)
+            except Exception as exc:
+                conn.send(("error", f"{type(exc).__name__}: {exc}"))
+                continue
+            conn.send((theta, distance))
 
 
 class DistanceWorker:

@@ -492,7 +492,7 @@ class GuardedTwin:
 
     def _accepted_state(self, theta: FloatArray, min_distance: float) -> TwinState | None:
         """The state at a goal the guard has accepted (its safe verdict still cached),
-        from that verdict and the single-input forward kinematics: the values of the
+        from that verdict (its measures and its rotation): the values of the
         batch path bit for bit at a fraction of its cost (what a state pushed at
         1 kHz while goals stream in needs). None for any other input.
 
@@ -500,20 +500,15 @@ class GuardedTwin:
         no colliding pair, and its singularity margin (a positive threshold) keeps
         every b_ii and det A away from zero, so the assembly label is the home mode's.
         """
-        from ..kinematics import _scalar
-
         label = self._home_label()
         if label is None:
             return None  # the verdict would not settle the pairs or the label
         verdict = self.guard.cached_verdict(theta)
-        if verdict is None or not verdict.safe:
-            return None
-        rows = _scalar.fk_home(theta.tolist(), _scalar.constants(self.design))
-        if rows is None:  # pragma: no cover - a safe verdict is reachable
+        if verdict is None or not verdict.safe or verdict.R is None:
             return None
         return TwinState(
             theta=theta.copy(),
-            R=np.array(rows, dtype=float),
+            R=verdict.R.copy(),
             reachable=True,
             pairs=(),
             min_distance=min_distance,
