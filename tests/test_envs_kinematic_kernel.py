@@ -61,7 +61,7 @@ def test_the_compiled_kernel_gives_the_python_kernels_bits(
     actions = _actions(3, 90, 8, hold=10)
     compiled = _env(8, env_cover_path, **options)
     plain = _env(8, env_cover_path, **options)
-    assert plain.core._step_kernel() is not None  # builds the arguments
+    assert plain.core.fused_arguments() is not None  # builds the arguments
     plain.core._kernel = K.step  # the Python function itself
     a, b = _run(compiled, actions, 4), _run(plain, actions, 4)
     for step, (x, y) in enumerate(zip(a, b, strict=True)):

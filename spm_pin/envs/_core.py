@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -267,14 +268,16 @@ class OrientCore:
     def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
         """Step ``rows`` with normalised actions (n, 3) in [-1, 1]: by the compiled
         kernel where it can (a cover, numba), the rest by numpy."""
-        kernel = self._step_kernel()
-        if kernel is None or rows.size == 0:
+        arguments = self.fused_arguments()
+        if arguments is None or rows.size == 0:
             return self._step_numpy(rows, action)
+        if self._kernel is None:
+            self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["step"]
         n = rows.size
         out = np.empty((n, 5))
         handed = np.zeros(n, dtype=bool)
         counts = np.zeros(2, dtype=np.int64)
-        kernel(
+        self._kernel(
             np.ascontiguousarray(rows, dtype=np.int64),
             np.ascontiguousarray(action, dtype=np.float64),
             self.theta,
@@ -283,11 +286,27 @@ class OrientCore:
             self.goal,
             self.hold,
             self.steps,
-            *self._kernel_args,
+            *arguments,
             out,
             handed,
             counts,
         )
+        return self.kernel_result(
+            rows, out, handed, counts, lambda back: self._step_numpy(rows[back], action[back])
+        )
+
+    def kernel_result(
+        self,
+        rows: IntArray,
+        out: FloatArray,
+        handed: BoolArray,
+        counts: IntArray,
+        rest: Callable[[IntArray], StepResult],
+    ) -> StepResult:
+        """The step's result from a compiled kernel's ``out`` (n, 5) (reward, error,
+        fraction, success, unsafe) and ``counts`` (the cover's checks asked and
+        settled), with ``rest(back)`` stepping the rows it ``handed`` back (indices
+        into ``rows``) by numpy."""
         assert self.lookup is not None
         self.lookup.asked += int(counts[0])
         self.lookup.settled += int(counts[1])
@@ -299,22 +318,23 @@ class OrientCore:
         back = np.flatnonzero(handed)
         self.handed_rows += int(back.size)
         if back.size:
-            rest = self._step_numpy(rows[back], action[back])
+            numpy_rows = rest(back)
             for field in dataclasses.fields(StepResult):
-                getattr(result, field.name)[back] = getattr(rest, field.name)
+                getattr(result, field.name)[back] = getattr(numpy_rows, field.name)
         return result
 
-    def _step_kernel(self) -> Any:
-        """The compiled :func:`~spm_pin.envs._kinematic_kernel.step`, or None (no cover,
-        no numba, ``fused`` off, or state arrays it does not take)."""
+    def fused_arguments(self) -> tuple[Any, ...] | None:
+        """The compiled step's arguments that do not change (motion, flags, weights,
+        the joint limits, the cover's arrays, the design's rows, the rotation's
+        constants: see :func:`~spm_pin.envs._kinematic_kernel.step`), made on first
+        use; None where no compiled step applies (no cover, no numba, ``fused`` off,
+        or state arrays it does not take)."""
         if not self.fused or self.lookup is None:
             return None
-        kernel = self._kernel
-        if kernel is None:
+        if not self._kernel_args:
             if not _jit.available() or self.hold.dtype != np.int64:
                 self.fused = False
                 return None
-            kernel = self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["step"]
             s, limits, design = self.settings, self.limits, self.design
             w = s.weights
             motion = np.array(
@@ -358,7 +378,7 @@ class OrientCore:
                 np.ascontiguousarray(rows),
                 solve,
             )
-        return kernel
+        return self._kernel_args
 
     def _step_numpy(self, rows: IntArray, action: FloatArray) -> StepResult:
         """:meth:`step_rows` in numpy."""

@@ -152,6 +152,41 @@ def physics_from(
     return (dataclasses.replace(base, **mine) if mine else base), rest
 
 
+@dataclasses.dataclass(frozen=True)
+class _Period:
+    """A control period's physics of n rows, for its end (:meth:`DynamicCore._finish`):
+    the clipped actions, the input angles at its start and end, the end speeds and
+    rotations, the path (substeps + 1, n, 3), the last step each row reached and the
+    rows the dynamics could not step, the servos' goals at the start and their speeds.
+    """
+
+    a: FloatArray
+    start: FloatArray
+    theta: FloatArray
+    speed: FloatArray
+    R: FloatArray
+    path: FloatArray
+    last: IntArray
+    failed: BoolArray
+    goal_start: FloatArray
+    goal_speed: FloatArray
+
+    def subset(self, back: IntArray) -> _Period:
+        """The period of the rows ``back`` (indices into its rows)."""
+        return _Period(
+            self.a[back],
+            self.start[back],
+            self.theta[back],
+            self.speed[back],
+            self.R[back],
+            self.path[:, back],
+            self.last[back],
+            self.failed[back],
+            self.goal_start[back],
+            self.goal_speed[back],
+        )
+
+
 class DynamicCore(OrientCore):
     """N robots moved by the reduced dynamics under their servos (see the module).
 
@@ -191,6 +226,7 @@ class DynamicCore(OrientCore):
         self.fused = True
         self._threads: int | None = None
         self._fused_kernel: Any = None
+        self._finish_kernel: Any = None
 
     @property
     def threads(self) -> int | None:
@@ -378,8 +414,9 @@ class DynamicCore(OrientCore):
             high[open_] = np.where(ok, high[open_], middle)
 
     def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
-        """One control period of ``rows`` with normalised actions (n, 3) in [-1, 1]."""
-        s = self.settings
+        """One control period of ``rows`` with normalised actions (n, 3) in [-1, 1]: the
+        physics (compiled where it can, :meth:`_fused_steps`), then its end (compiled
+        with a cover, :meth:`_finish_fused`; else :meth:`_finish`)."""
         servo = self.servo
         n = rows.size
         a = np.clip(action, -1.0, 1.0)
@@ -432,33 +469,87 @@ class DynamicCore(OrientCore):
             path[k + 1, alive] = th
             if alive.size == 0:
                 break
-        safe = ~failed
+        self.torque[rows] = torque
+        self.torque_speed[rows] = torque_speed
+        self.servo_load[rows] = load
+        period = _Period(a, start, theta, speed, R, path, last, failed, goal_start, goal_speed)
+        arguments = self.fused_arguments()
+        if arguments is not None and (done == self.substeps or not failed.any()):
+            return self._finish_fused(rows, period, arguments)
+        return self._finish(rows, period)
+
+    def _finish_fused(self, rows: IntArray, p: _Period, arguments: tuple[Any, ...]) -> StepResult:
+        """:meth:`_finish` by the compiled :func:`~spm_pin.envs._dynamic_kernel.finish`
+        (a period every row completed, a cover), the rows it hands back by numpy."""
+        if self._finish_kernel is None:
+            self._finish_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["finish"]
+        n = rows.size
+        out = np.empty((n, 5))
+        handed = np.zeros(n, dtype=bool)
+        counts = np.zeros(2, dtype=np.int64)
+        motion, flags, weights, low, high, cover = arguments[:6]
+        c = np.ascontiguousarray
+        self._finish_kernel(
+            c(rows, dtype=np.int64),
+            *(c(x, dtype=np.float64) for x in (p.a, p.start, p.theta, p.speed, p.R, p.path)),
+            *(c(x, dtype=np.float64) for x in (p.goal_start, p.goal_speed)),
+            self.theta,
+            self.speed,
+            self.R,
+            self.goal,
+            self.hold,
+            self.steps,
+            self.servo_goal,
+            self.goal_speed,
+            self.physics.actuation == "position",
+            int(self.substeps),
+            motion,
+            flags,
+            weights,
+            low,
+            high,
+            cover,
+            self.dynamics._constants(),
+            out,
+            handed,
+            counts,
+        )
+        return self.kernel_result(
+            rows, out, handed, counts, lambda back: self._finish(rows[back], p.subset(back))
+        )
+
+    def _finish(self, rows: IntArray, p: _Period) -> StepResult:
+        """The end of a period of ``rows`` in numpy: the end state's safety (the clip's
+        bisection over the physics steps, or the end of the episode), the servos'
+        goals and :meth:`settle`."""
+        s = self.settings
+        n = rows.size
+        theta, speed = p.theta.copy(), p.speed.copy()
+        goal_speed = p.goal_speed.copy()
+        safe = ~p.failed
         safe[safe] = self.safe(theta[safe])
         fraction = np.ones(n)
         unsafe = np.zeros(n, dtype=bool)
         bad = np.flatnonzero(~safe)
         if bad.size:
             if s.safety == "clip":
-                stop = self._last_safe(path, bad, last[bad])
-                theta[bad] = path[stop, bad]
+                stop = self._last_safe(p.path, bad, p.last[bad])
+                theta[bad] = p.path[stop, bad]
                 fraction[bad] = stop / self.substeps
             else:
-                theta[bad] = start[bad]
+                theta[bad] = p.start[bad]
                 fraction[bad] = 0.0
                 unsafe[bad] = True
             speed[bad] = 0.0
-        if position:
-            goal = goal_start + goal_speed * s.control_period
+        if self.physics.actuation == "position":
+            goal = p.goal_start + goal_speed * s.control_period
             goal[bad] = theta[bad]  # the stop holds the servos where they stand
             goal_speed[bad] = 0.0
             self.servo_goal[rows] = goal
             self.goal_speed[rows] = goal_speed
         else:
             self.servo_goal[rows] = theta
-        self.torque[rows] = torque
-        self.torque_speed[rows] = torque_speed
-        self.servo_load[rows] = load
-        return self.settle(rows, a, theta, speed, fraction, unsafe, reference=R)
+        return self.settle(rows, p.a, theta, speed, fraction, unsafe, reference=p.R)
 
     def rotations(
         self, rows: IntArray, theta: FloatArray, reference: FloatArray | None = None

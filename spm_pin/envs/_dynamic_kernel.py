@@ -26,8 +26,14 @@ forward kinematics; a singularity) and returns how many steps it completed: the
 numpy loop goes on from there with the state it left, so the results, the errors and
 the ends are those of the numpy loop. A step of one row (:func:`_advance_row`)
 depends on no other row, so the caller may run the period on chunks of rows in
-threads (:func:`period` releases the GIL). Nothing here checks its arguments:
-the caller passes C-contiguous float arrays.
+threads (:func:`period` releases the GIL).
+
+With a cover, :func:`finish` ends a period that every row completed: the end's
+safety by the cover's certified cells, the clip's bisection over the physics steps
+(or the end of the episode), the servos' goals, the rotation, the reward and the
+ends, as the numpy path after its loop; a row it cannot end (a state the safe set
+must check, a rotation not settled) is handed back to numpy. Nothing here checks
+its arguments: the caller passes C-contiguous arrays of the right types.
 """
 
 from __future__ import annotations
@@ -54,11 +60,15 @@ from ..dynamics._reduced_kernel import (
     _row_step,
     _trig,
     _vec_of,
+    home_rotation_of,
 )
+from ._kinematic_kernel import CHECK, SAFE, UNSAFE, Cover, _enter, _search, _verdict, covered
 
-__all__ = ["KERNELS", "period"]
+__all__ = ["KERNELS", "finish", "period"]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
 Vec = tuple[float, float, float]
 #: The servo's (kp [N m/rad], kd [N m s/rad], stall torque [N m], no-load speed [rad/s]).
 Servo = tuple[float, float, float, float]
@@ -290,6 +300,131 @@ def period(
     return substeps
 
 
+@_jit.nogil
+def finish(
+    rows: IntArray,
+    action: FloatArray,
+    start: FloatArray,
+    end: FloatArray,
+    velocity: FloatArray,
+    reference: FloatArray,
+    path: FloatArray,
+    goal_start: FloatArray,
+    goal_speed: FloatArray,
+    theta: FloatArray,
+    speed: FloatArray,
+    R: FloatArray,
+    goal: FloatArray,
+    hold: IntArray,
+    steps: IntArray,
+    servo_goal: FloatArray,
+    servo_speed: FloatArray,
+    position: bool,
+    substeps: int,
+    motion: FloatArray,
+    flags: IntArray,
+    weights: FloatArray,
+    low: FloatArray,
+    high: FloatArray,
+    cover: Cover,
+    k: Constants,
+    out: FloatArray,
+    handed: BoolArray,
+    counts: IntArray,
+) -> None:
+    """The end of a control period whose physics steps every row completed, for the
+    ``rows`` of a core with a cover, in place: what
+    :meth:`DynamicCore.step_rows <spm_pin.envs._dynamic.DynamicCore.step_rows>` does
+    in numpy after its loop, the same operations in the same order.
+
+    The end state's safety by the cover (:func:`~spm_pin.envs._kinematic_kernel.
+    _verdict`); for an unsafe end, ``"clip"``: the bisection over the period's physics
+    steps for the last safe one, speeds zeroed; ``"terminate"``: the start, stopped;
+    the servos' goals (``"position"``: moved on through the period, or held where the
+    robot stopped; ``"torque"``: where it stands); the rotation by Newton's method from
+    the period's last one (:meth:`~spm_pin.dynamics.ReducedDynamics.rotation`'s warm
+    start); the error, the goal counter and the reward
+    (:func:`~spm_pin.envs._kinematic_kernel._enter`).
+
+    A row whose end needs what the kernel does not do (a state outside the certified
+    cells that the safe set must check; a rotation the warm start does not settle) is
+    left untouched and flagged in ``handed``: the numpy path ends it.
+
+    Args:
+        rows: The robots stepped (n,), indices into the core's arrays.
+        action: Their clipped actions (n, 3).
+        start, end, velocity: Their input angles at the period's start and end [rad]
+            and their speeds at its end [rad/s] (n, 3).
+        reference: Their rotations at the period's end (n, 3, 3).
+        path: (substeps + 1, n, 3): the input angles after each physics step.
+        goal_start, goal_speed: The servos' goals at the period's start [rad] and
+            their commanded speeds [rad/s] (n, 3).
+        theta, speed, R, goal, hold, steps, servo_goal, servo_speed: The core's state
+            of every robot (N, ...); the rows ended here are written.
+        position: ``"position"`` actuation (else ``"torque"``).
+        substeps: Physics steps in the period.
+        motion, flags, weights, low, high, cover: As
+            :func:`~spm_pin.envs._kinematic_kernel.step` takes them.
+        k: The reduced dynamics' constants.
+        out, handed, counts: As :func:`~spm_pin.envs._kinematic_kernel.step`.
+    """
+    period_s, tolerance = motion[2], motion[3]
+    clip, hold_steps, only = flags[1] != 0, flags[3], flags[4] != 0
+    u, w0, v0 = _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2])
+    for m in range(rows.shape[0]):
+        r = rows[m]
+        handed[m] = True
+        x = _vec_of(end[m])
+        verdict = _verdict(x, low, high, only, cover)
+        asked, settled = 1, int(verdict == SAFE)
+        if verdict == CHECK:
+            continue
+        bad = verdict == UNSAFE
+        fraction, unsafe = 1.0, False
+        v = _vec_of(velocity[m])
+        if bad:
+            v = (0.0, 0.0, 0.0)
+            if clip:  # the last safe physics step (the start is safe)
+                low_step, high_step = 0, substeps
+                while high_step - low_step > 1:
+                    middle = (low_step + high_step) // 2
+                    verdict = _verdict(_vec_of(path[middle, m]), low, high, only, cover)
+                    asked += 1
+                    settled += int(verdict == SAFE)
+                    if verdict == CHECK:
+                        break
+                    if verdict == SAFE:
+                        low_step = middle
+                    else:
+                        high_step = middle
+                if verdict == CHECK:
+                    continue
+                x = _vec_of(path[low_step, m])
+                fraction = low_step / substeps
+            else:
+                x = _vec_of(start[m])
+                fraction, unsafe = 0.0, True
+        settled_rotation, rotation = home_rotation_of(
+            x, _mat_of(reference[m]), u, w0, v0, k[13], k[16], k[17], k[19], int(k[20])
+        )
+        if not settled_rotation:
+            continue
+        counts[0] += asked
+        counts[1] += settled
+        for j in range(3):
+            if not position:
+                servo_goal[r, j] = x[j]
+            elif bad:  # the stop holds the servos where they stand
+                servo_goal[r, j] = x[j]
+                servo_speed[r, j] = 0.0
+            else:
+                servo_goal[r, j] = goal_start[m, j] + goal_speed[m, j] * period_s
+                servo_speed[r, j] = goal_speed[m, j]
+        _enter(r, m, x, v, rotation, _vec_of(action[m]), fraction, unsafe, theta, speed, R,
+               goal, hold, steps, tolerance, hold_steps, weights, out)  # fmt: skip
+        handed[m] = False
+
+
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
 KERNELS = (
     *REDUCED_KERNELS,
@@ -301,4 +436,9 @@ KERNELS = (
     _advance_row,
     _commit_row,
     period,
+    _search,
+    covered,
+    _verdict,
+    _enter,
+    finish,
 )

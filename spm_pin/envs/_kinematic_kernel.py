@@ -236,37 +236,66 @@ def step(
             continue
         counts[0] += asked
         counts[1] += settled
-        total = 0.0
-        for i in range(3):
-            for j in range(3):
-                d = rotation[i][j] - goal[r, i, j]
-                total += d * d
-        error = 2.0 * math.asin(min(math.sqrt(total) / math.sqrt(8.0), 1.0))
-        held = hold[r] + 1 if error <= tolerance else 0
-        success = held >= hold_steps
-        count = steps[r] + 1
-        effort = (a0 * a0 + a1 * a1 + a2 * a2) / 3.0
-        reward = (
-            -weights[0] * error
-            - weights[1] * effort
-            - weights[2] * (1.0 - fraction) * (0.0 if unsafe else 1.0)
-            + weights[3] * (1.0 if success else 0.0)
-            - weights[4] * (1.0 if unsafe else 0.0)
-        )
-        for i in range(3):
-            for j in range(3):
-                R[r, i, j] = rotation[i][j]
-        theta[r, 0], theta[r, 1], theta[r, 2] = x
-        speed[r, 0], speed[r, 1], speed[r, 2] = fraction * c0, fraction * c1, fraction * c2
-        hold[r] = held
-        steps[r] = count
-        out[m, 0] = reward
-        out[m, 1] = error
-        out[m, 2] = fraction
-        out[m, 3] = 1.0 if success else 0.0
-        out[m, 4] = 1.0 if unsafe else 0.0
+        velocity = (fraction * c0, fraction * c1, fraction * c2)
+        _enter(r, m, x, velocity, rotation, (a0, a1, a2), fraction, unsafe, theta, speed, R,
+               goal, hold, steps, tolerance, hold_steps, weights, out)  # fmt: skip
         handed[m] = False
 
 
+def _enter(
+    r: int,
+    m: int,
+    x: Vec,
+    velocity: Vec,
+    rotation: Mat,
+    a: Vec,
+    fraction: float,
+    unsafe: bool,
+    theta: FloatArray,
+    speed: FloatArray,
+    R: FloatArray,
+    goal: FloatArray,
+    hold: IntArray,
+    steps: IntArray,
+    tolerance: float,
+    hold_steps: int,
+    weights: FloatArray,
+    out: FloatArray,
+) -> None:
+    """Enter robot ``r``'s state after its step, the ``m``-th of the call, as
+    :meth:`OrientCore.settle <spm_pin.envs._core.OrientCore.settle>` does: input
+    angles x [rad], speeds [rad/s], the rotation; the orientation error, the goal
+    counter and the reward of the clipped action a, a ``fraction`` of the step taken
+    (``unsafe``: ended by the guard), into ``out[m]`` (see :func:`step`)."""
+    total = 0.0
+    for i in range(3):
+        for j in range(3):
+            d = rotation[i][j] - goal[r, i, j]
+            total += d * d
+    error = 2.0 * math.asin(min(math.sqrt(total) / math.sqrt(8.0), 1.0))
+    held = hold[r] + 1 if error <= tolerance else 0
+    success = held >= hold_steps
+    effort = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) / 3.0
+    reward = (
+        -weights[0] * error
+        - weights[1] * effort
+        - weights[2] * (1.0 - fraction) * (0.0 if unsafe else 1.0)
+        + weights[3] * (1.0 if success else 0.0)
+        - weights[4] * (1.0 if unsafe else 0.0)
+    )
+    for i in range(3):
+        for j in range(3):
+            R[r, i, j] = rotation[i][j]
+        theta[r, i] = x[i]
+        speed[r, i] = velocity[i]
+    hold[r] = held
+    steps[r] = steps[r] + 1
+    out[m, 0] = reward
+    out[m, 1] = error
+    out[m, 2] = fraction
+    out[m, 3] = 1.0 if success else 0.0
+    out[m, 4] = 1.0 if unsafe else 0.0
+
+
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
-KERNELS = (*REDUCED_KERNELS, _search, covered, covered_rows, _verdict, _clip, step)
+KERNELS = (*REDUCED_KERNELS, _search, covered, covered_rows, _verdict, _clip, _enter, step)
