@@ -302,11 +302,13 @@ class OrientCore:
         handed: BoolArray,
         counts: IntArray,
         rest: Callable[[IntArray], StepResult],
+        *,
+        count: bool = True,
     ) -> StepResult:
         """The step's result from a compiled kernel's ``out`` (n, 5) (reward, error,
         fraction, success, unsafe) and ``counts`` (the cover's checks asked and
         settled), with ``rest(back)`` stepping the rows it ``handed`` back (indices
-        into ``rows``) by numpy."""
+        into ``rows``) by numpy; ``count``: add those rows to ``handed_rows``."""
         assert self.lookup is not None
         self.lookup.asked += int(counts[0])
         self.lookup.settled += int(counts[1])
@@ -316,7 +318,8 @@ class OrientCore:
         truncated = (self.steps[rows] >= self.settings.max_steps) & ~terminated
         result = StepResult(out[:, 0], terminated, truncated, out[:, 1], out[:, 2], success, unsafe)
         back = np.flatnonzero(handed)
-        self.handed_rows += int(back.size)
+        if count:
+            self.handed_rows += int(back.size)
         if back.size:
             numpy_rows = rest(back)
             for field in dataclasses.fields(StepResult):

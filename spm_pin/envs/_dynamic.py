@@ -227,6 +227,7 @@ class DynamicCore(OrientCore):
         self._threads: int | None = None
         self._fused_kernel: Any = None
         self._finish_kernel: Any = None
+        self._step_kernel: Any = None
 
     @property
     def threads(self) -> int | None:
@@ -379,17 +380,11 @@ class DynamicCore(OrientCore):
         records: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
     ) -> int:
         """``kernel`` (a period) called on the state, the drive and the records."""
-        servo_model = self.servo
         done: int = kernel(
             *state,
             *drive,
             self.physics.actuation == "position",
-            (
-                float(servo_model.kp),
-                float(servo_model.kd),
-                float(servo_model.stall_torque),
-                float(servo_model.no_load_speed),
-            ),
+            self._servo_constants(),
             float(self.dt),
             int(self.substeps),
             self.physics.integrator == "rk4",
@@ -397,6 +392,12 @@ class DynamicCore(OrientCore):
             *records,
         )
         return done
+
+    def _servo_constants(self) -> tuple[float, float, float, float]:
+        """The kernels' servo: (kp, kd, stall torque, no-load speed)."""
+        servo = self.servo
+        kp, kd = float(servo.kp), float(servo.kd)
+        return kp, kd, float(servo.stall_torque), float(servo.no_load_speed)
 
     def _last_safe(self, path: FloatArray, rows: IntArray, high: IntArray) -> IntArray:
         """For each of ``rows`` (indices into the path's robots): the last physics step
@@ -414,9 +415,93 @@ class DynamicCore(OrientCore):
             high[open_] = np.where(ok, high[open_], middle)
 
     def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
-        """One control period of ``rows`` with normalised actions (n, 3) in [-1, 1]: the
-        physics (compiled where it can, :meth:`_fused_steps`), then its end (compiled
-        with a cover, :meth:`_finish_fused`; else :meth:`_finish`)."""
+        """One control period of ``rows`` with normalised actions (n, 3) in [-1, 1]: with
+        a cover and numba, robot by robot in one compiled call
+        (:func:`~spm_pin.envs._dynamic_kernel.step`, chunks of rows in threads), the
+        robots it hands back by :meth:`_step_periods`; else :meth:`_step_periods`."""
+        arguments = self.fused_arguments()
+        if arguments is None or rows.size == 0 or self._period_kernel() is None:
+            return self._step_periods(rows, action)
+        if self._step_kernel is None:
+            self._step_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["step"]
+        n = rows.size
+        out = np.empty((n, 5))
+        handed = np.zeros(n, dtype=bool)
+        ids = np.ascontiguousarray(rows, dtype=np.int64)
+        actions = np.ascontiguousarray(action, dtype=np.float64)
+        chunks = self.chunks(n)
+        if chunks == 1:
+            counts = np.zeros(2, dtype=np.int64)
+            self._call_step(ids, actions, out, handed, counts, arguments)
+        else:  # contiguous chunks of robots in threads (the kernel releases the GIL)
+            bounds = np.linspace(0, n, chunks + 1).astype(int).tolist()
+            parts = np.zeros((chunks, 2), dtype=np.int64)
+            futures = [
+                _pool().submit(
+                    self._call_step, ids[a:b], actions[a:b], out[a:b], handed[a:b], part, arguments
+                )
+                for part, (a, b) in zip(parts, itertools.pairwise(bounds), strict=True)
+            ]
+            for future in futures:
+                future.result()
+            counts = parts.sum(axis=0)
+        # The robots handed back go period by period; those whose end numpy makes are
+        # counted there (handed_rows), once.
+        return self.kernel_result(
+            rows,
+            out,
+            handed,
+            counts,
+            lambda back: self._step_periods(rows[back], action[back]),
+            count=False,
+        )
+
+    def _call_step(
+        self,
+        rows: IntArray,
+        action: FloatArray,
+        out: FloatArray,
+        handed: BoolArray,
+        counts: IntArray,
+        arguments: tuple[Any, ...],
+    ) -> None:
+        """The compiled :func:`~spm_pin.envs._dynamic_kernel.step` of ``rows``."""
+        motion, flags, weights, low, high, cover = arguments[:6]
+        self._step_kernel(
+            rows,
+            action,
+            self.theta,
+            self.speed,
+            self.R,
+            self.servo_goal,
+            self.goal_speed,
+            self.torque,
+            self.torque_speed,
+            self.servo_load,
+            self.goal,
+            self.hold,
+            self.steps,
+            self.physics.actuation == "position",
+            self._servo_constants(),
+            float(self.dt),
+            int(self.substeps),
+            self.physics.integrator == "rk4",
+            self.dynamics._constants(),
+            motion,
+            flags,
+            weights,
+            low,
+            high,
+            cover,
+            out,
+            handed,
+            counts,
+        )
+
+    def _step_periods(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """:meth:`step_rows` period by period: the physics steps of every row (compiled
+        where they can, :meth:`_fused_steps`), then the period's end (compiled with a
+        cover, :meth:`_finish_fused`; else :meth:`_finish`)."""
         servo = self.servo
         n = rows.size
         a = np.clip(action, -1.0, 1.0)

@@ -32,7 +32,10 @@ With a cover, :func:`finish` ends a period that every row completed: the end's
 safety by the cover's certified cells, the clip's bisection over the physics steps
 (or the end of the episode), the servos' goals, the rotation, the reward and the
 ends, as the numpy path after its loop; a row it cannot end (a state the safe set
-must check, a rotation not settled) is handed back to numpy. Nothing here checks
+must check, a rotation not settled) is handed back to numpy. :func:`step` takes whole
+control periods robot after robot: the command of the action, :func:`period` of the
+robot alone and :func:`finish` (a robot's data stay in the cache through its
+period); a robot it cannot step is left untouched for the numpy path. Nothing here checks
 its arguments: the caller passes C-contiguous arrays of the right types.
 """
 
@@ -62,9 +65,19 @@ from ..dynamics._reduced_kernel import (
     _vec_of,
     home_rotation_of,
 )
-from ._kinematic_kernel import CHECK, SAFE, UNSAFE, Cover, _enter, _search, _verdict, covered
+from ._kinematic_kernel import (
+    CHECK,
+    SAFE,
+    UNSAFE,
+    Cover,
+    _clip,
+    _enter,
+    _search,
+    _verdict,
+    covered,
+)
 
-__all__ = ["KERNELS", "finish", "period"]
+__all__ = ["KERNELS", "finish", "period", "step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -425,6 +438,107 @@ def finish(
         handed[m] = False
 
 
+@_jit.nogil
+def step(
+    rows: IntArray,
+    action: FloatArray,
+    theta: FloatArray,
+    speed: FloatArray,
+    R: FloatArray,
+    servo_goal: FloatArray,
+    servo_speed: FloatArray,
+    torque: FloatArray,
+    torque_speed: FloatArray,
+    servo_load: FloatArray,
+    goal: FloatArray,
+    hold: IntArray,
+    steps: IntArray,
+    position: bool,
+    servo: Servo,
+    dt: float,
+    substeps: int,
+    rk4: bool,
+    k: Constants,
+    motion: FloatArray,
+    flags: IntArray,
+    weights: FloatArray,
+    low: FloatArray,
+    high: FloatArray,
+    cover: Cover,
+    out: FloatArray,
+    handed: BoolArray,
+    counts: IntArray,
+) -> None:
+    """Whole control periods of ``rows`` with a cover, one robot after the other, in
+    place: the command of the action (the servos' goal speed within the acceleration
+    limit, or the torque asked for), :func:`period` of the robot alone, then
+    :func:`finish`; what :meth:`DynamicCore.step_rows
+    <spm_pin.envs._dynamic.DynamicCore.step_rows>` does in numpy, the same operations
+    in the same order (a robot's period does not depend on the others).
+
+    A robot whose period or end needs the numpy path (see :func:`period` and
+    :func:`finish`) is left untouched and flagged in ``handed``: the numpy path steps
+    it from the start of its period.
+
+    Args:
+        rows: The robots stepped (n,), indices into the core's arrays.
+        action: Their actions (n, 3), finite.
+        theta, speed, R, servo_goal, servo_speed, torque, torque_speed, servo_load,
+            goal, hold, steps: The core's state of every robot (N, ...); the rows
+            stepped here are written.
+        position, servo, dt, substeps, rk4, k: As :func:`period` takes them.
+        motion, flags, weights, low, high, cover, out, handed, counts: As
+            :func:`~spm_pin.envs._kinematic_kernel.step` takes them.
+    """
+    max_speed, dv, limit = motion[0], motion[1], flags[0] != 0
+    # One robot's period: the arrays of a batch of one, reused robot after robot.
+    one = np.zeros(1, dtype=np.int64)
+    a = np.empty((1, 3))
+    th = np.empty((1, 3))
+    sp = np.empty((1, 3))
+    rot = np.empty((1, 3, 3))
+    start_goal = np.empty((1, 3))
+    goal_speed = np.empty((1, 3))
+    wanted = np.empty((1, 3))
+    path = np.empty((substeps + 1, 1, 3))
+    tau = np.empty((1, 3))
+    tau_speed = np.empty((1, 3))
+    load = np.zeros(1)
+    for m in range(rows.shape[0]):
+        r = rows[m]
+        for j in range(3):
+            aj = _clip(action[m, j], -1.0, 1.0)
+            a[0, j] = aj
+            wanted[0, j] = aj * servo[2]
+            command = aj * max_speed
+            if limit:
+                command = _clip(command, servo_speed[r, j] - dv, servo_speed[r, j] + dv)
+            goal_speed[0, j] = command if position else servo_speed[r, j]
+            start_goal[0, j] = servo_goal[r, j]
+            th[0, j] = theta[r, j]
+            sp[0, j] = speed[r, j]
+            path[0, 0, j] = theta[r, j]
+            tau[0, j] = torque[r, j]
+            tau_speed[0, j] = torque_speed[r, j]
+            for i in range(3):
+                rot[0, j, i] = R[r, j, i]
+        load[0] = 0.0
+        done = period(th, sp, rot, start_goal, goal_speed, wanted, position, servo, dt,
+                      substeps, rk4, k, path, tau, tau_speed, load)  # fmt: skip
+        if done < substeps:
+            handed[m] = True
+            continue
+        one[0] = r
+        finish(one, a, path[0], th, sp, rot, path, start_goal, goal_speed, theta, speed, R, goal,
+               hold, steps, servo_goal, servo_speed, position, substeps, motion, flags, weights,
+               low, high, cover, k, out[m : m + 1], handed[m : m + 1], counts)  # fmt: skip
+        if not handed[m]:
+            for j in range(3):
+                torque[r, j] = tau[0, j]
+                torque_speed[r, j] = tau_speed[0, j]
+            servo_load[r] = load[0]
+
+
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
 KERNELS = (
     *REDUCED_KERNELS,
@@ -441,4 +555,6 @@ KERNELS = (
     _verdict,
     _enter,
     finish,
+    _clip,
+    step,
 )

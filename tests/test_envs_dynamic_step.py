@@ -1,15 +1,18 @@
-"""The compiled end of a control period of the dynamic environments with a cover
-(:func:`spm_pin.envs._dynamic_kernel.finish`) against the numpy path
-(:meth:`~spm_pin.envs._dynamic.DynamicCore._finish`, ``core.fused = False``).
+"""The compiled step of the dynamic environments with a cover
+(:func:`spm_pin.envs._dynamic_kernel.step`: the command, the period and its end,
+:func:`~spm_pin.envs._dynamic_kernel.finish`) against the numpy path
+(``core.fused = False``).
 
-With a saved cover, the end of a period (the safety of its end by the cover, the
-clip's bisection over the physics steps or the end of the episode, the servos'
-goals, the rotation, the error, the goal counter and the reward) runs in one
-compiled call. The decisions (step fractions, ends, unsafe steps, the cover's checks
-asked and settled) are those of the numpy path; the numbers agree to rounding (the
-error's sum runs in another order); a row whose end the safe set must check (outside
-the certified cells without ``cover_only``) is ended by numpy; the kernel run as
-Python gives the compiled one's bits.
+With a saved cover, a whole control period of each robot (the command, the physics
+steps, the safety of its end by the cover, the clip's bisection over the physics
+steps or the end of the episode, the servos' goals, the rotation, the error, the goal
+counter and the reward) runs in one compiled call. The decisions (step fractions,
+ends, unsafe steps, the cover's checks asked and settled) are those of the numpy
+path; the numbers agree to rounding (the error's sum runs in another order); a row
+whose end the safe set must check (outside the certified cells without
+``cover_only``) is stepped by numpy, as are robots handed back (period by period,
+the compiled physics and end); robots in chunks on threads step as on one; the
+kernel run as Python gives the compiled one's bits.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ pytest.importorskip("gymnasium")
 from spm_pin import _jit
 from spm_pin.envs import OrientDynamicEnv, OrientDynamicVectorEnv
 from spm_pin.envs import _dynamic_kernel as K
+from spm_pin.envs._dynamic import THREADED_ROWS
 
 needs_numba = pytest.mark.skipif(not _jit.available(), reason="numba is not installed")
 
@@ -54,15 +58,15 @@ def _make(n: int, cover: str, options: dict[str, Any], fused: bool) -> OrientDyn
 
 
 def _count_calls(env: Any) -> list[int]:
-    """How many rows each call of the compiled end took."""
+    """How many robots each call of the compiled step took."""
     calls: list[int] = []
-    original = env.core._finish_fused
+    original = env.core._call_step
 
     def spy(rows: Any, *args: Any) -> Any:
         calls.append(int(rows.size))
         return original(rows, *args)
 
-    env.core._finish_fused = spy  # type: ignore[method-assign]
+    env.core._call_step = spy
     return calls
 
 
@@ -99,7 +103,7 @@ def test_the_compiled_end_decides_as_numpy(env_cover_path: str, case: str) -> No
     assert (a.asked, a.settled) == (b.asked, b.settled)
     # The compiled end did the work; the safety was met as the case says.
     stepped = sum(int(np.count_nonzero(x[4]["_step_fraction"])) for x in outs[0][:-1])
-    assert sum(calls) == stepped  # every stepped row (a period without a hand-back)
+    assert sum(calls) == stepped  # every robot stepped went through the compiled step
     if options.get("cover_only", True):
         assert fused.core.handed_rows == 0
     else:  # ends outside the certified cells: the safe set checks them, in numpy
@@ -111,14 +115,15 @@ def test_the_compiled_end_decides_as_numpy(env_cover_path: str, case: str) -> No
 
 
 @needs_numba
-def test_the_python_end_gives_the_compiled_bits(env_cover_path: str) -> None:
-    """:func:`~spm_pin.envs._dynamic_kernel.finish` run as Python (what numba
-    compiles) ends the periods as the compiled one, bit for bit."""
-    n, steps = 6, 60
+def test_the_python_step_gives_the_compiled_bits(env_cover_path: str) -> None:
+    """:func:`~spm_pin.envs._dynamic_kernel.step` run as Python (what numba compiles,
+    with its period and end) steps as the compiled one, bit for bit."""
+    n, steps = 4, 40
     options = {"safety": "clip"}
     compiled = _make(n, env_cover_path, options, True)
     python = _make(n, env_cover_path, options, True)
-    python.core._finish_kernel = K.finish
+    assert python.core.fused_arguments() is not None
+    python.core._step_kernel = K.step
     actions = _actions(3, steps, n, torque=False)
     for env in (compiled, python):
         env.reset(seed=5)
@@ -131,8 +136,28 @@ def test_the_python_end_gives_the_compiled_bits(env_cover_path: str) -> None:
 
 
 @needs_numba
-def test_the_single_env_ends_its_periods_compiled(env_cover_path: str) -> None:
-    """One robot: the compiled end, the same steps as numpy's."""
+def test_robots_in_threads_step_as_on_one_thread(env_cover_path: str) -> None:
+    """Chunks of robots on two threads: the same bits as one thread."""
+    n, steps = 2 * THREADED_ROWS + 17, 12
+    envs = [_make(n, env_cover_path, {"safety": "clip"}, True) for _ in range(2)]
+    envs[0].core.threads, envs[1].core.threads = 2, 1
+    assert envs[0].core.chunks(n) == 2 and envs[1].core.chunks(n) == 1
+    actions = _actions(13, steps, n, torque=False)
+    for env in envs:
+        env.reset(seed=8)
+    for action in actions:
+        x, y = envs[0].step(action), envs[1].step(action)
+        for u, v in zip(x[:4], y[:4], strict=True):
+            np.testing.assert_array_equal(u, v)
+    for name in (*STATE, "hold", "steps"):
+        np.testing.assert_array_equal(getattr(envs[0].core, name), getattr(envs[1].core, name))
+    a, b = envs[0].core.lookup, envs[1].core.lookup
+    assert a is not None and b is not None and (a.asked, a.settled) == (b.asked, b.settled)
+
+
+@needs_numba
+def test_the_single_env_steps_compiled(env_cover_path: str) -> None:
+    """One robot: the compiled step, the same steps as numpy's."""
     envs = [OrientDynamicEnv(cover=env_cover_path, cover_only=True, max_steps=40) for _ in range(2)]
     envs[1].core.fused = False
     calls = _count_calls(envs[0])
@@ -147,3 +172,41 @@ def test_the_single_env_ends_its_periods_compiled(env_cover_path: str) -> None:
             for env in envs:
                 env.reset()
     assert len(calls) == len(actions)
+
+
+@needs_numba
+@pytest.mark.parametrize("case", ["position-clip", "rk4-terminate"])
+def test_robots_handed_back_step_period_by_period_as_numpy(env_cover_path: str, case: str) -> None:
+    """Every robot handed back by the compiled step: the periods' compiled physics and
+    compiled ends (:func:`~spm_pin.envs._dynamic_kernel.finish`) step as numpy."""
+    options = CASES[case]
+    n, steps = 8, 150
+    fused = _make(n, env_cover_path, options, True)
+    numpy = _make(n, env_cover_path, options, False)
+
+    def hand_back(rows: Any, action: Any, out: Any, handed: Any, *args: Any) -> None:
+        handed[:] = True
+
+    fused.core._call_step = hand_back  # type: ignore[method-assign]
+    ends: list[int] = []
+    original = fused.core._finish_fused
+
+    def spy(rows: Any, *args: Any) -> Any:
+        ends.append(int(rows.size))
+        return original(rows, *args)
+
+    fused.core._finish_fused = spy  # type: ignore[method-assign]
+    actions = _actions(17, steps, n, torque=False)
+    for env in (fused, numpy):
+        env.reset(seed=19)
+    for step, action in enumerate(actions):
+        x, y = fused.step(action), numpy.step(action)
+        np.testing.assert_allclose(x[1], y[1], rtol=0.0, atol=1e-9, err_msg=f"step {step}")
+        for u, v in zip(x[2:4], y[2:4], strict=True):
+            np.testing.assert_array_equal(u, v, err_msg=f"step {step}")
+        np.testing.assert_array_equal(x[4]["step_fraction"], y[4]["step_fraction"])
+    for name in STATE:
+        np.testing.assert_allclose(
+            getattr(fused.core, name), getattr(numpy.core, name), rtol=0.0, atol=1e-12
+        )
+    assert ends and sum(ends) > 0 and fused.core.handed_rows == 0
