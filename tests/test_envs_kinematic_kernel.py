@@ -197,3 +197,30 @@ def test_cover_only_refuses_a_home_start_or_a_cover_without_cells(
     SafeCover(safe_set_of(settings.the_design, settings.plan_settings)).save(empty)
     with pytest.raises(InputError, match="in the cells the cover certified"):
         OrientVectorEnv(1, cover=str(empty), cover_only=True)
+
+
+@needs_numba
+def test_compiled_observations_are_numpys() -> None:
+    """The compiled observations (no noise) equal numpy's, float32 bit for bit, at
+    random states (speeds beyond the limit clipped); with noise numpy draws them."""
+    from spm_pin.envs import _observe_kernel
+
+    env = OrientVectorEnv(64)
+    env.reset(seed=4)
+    rng = np.random.default_rng(6)
+    core = env.core
+    core.theta[:] = rng.uniform(-7.0, 7.0, size=core.theta.shape)
+    core.speed[:] = rng.uniform(-2.0, 2.0, size=core.speed.shape) * core.limits.max_speed
+    rows = np.array([5, 0, 63, 17, 5])
+    compiled = core.observe(rows, [])
+    assert core._observe is not None  # the compiled path ran
+    core.fused = False
+    numpy = core.observe(rows, [])
+    assert compiled.dtype == numpy.dtype == np.float32
+    np.testing.assert_array_equal(compiled, numpy)
+    assert np.any(np.abs(numpy[:, 18:]) == 1.0)  # some speeds were clipped
+    python = np.empty_like(compiled)
+    _observe_kernel.observe_rows(
+        rows, core.R, core.goal, core.theta, core.speed, core.limits.max_speed, python
+    )
+    np.testing.assert_array_equal(python, compiled)

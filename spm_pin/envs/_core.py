@@ -24,7 +24,7 @@ from ..errors import InputError
 from ..kinematics import forward_kinematics
 from ..kinematics.fk import _SIGN_TOL
 from ..planning import SafeSet, safe_set_of
-from . import _kinematic_kernel
+from . import _kinematic_kernel, _observe_kernel
 from ._safe_lookup import SafeLookup
 from .settings import OrientSettings
 
@@ -105,6 +105,7 @@ class OrientCore:
         self.handed_rows = 0
         self._kernel: Any = None
         self._kernel_args: tuple[Any, ...] = ()
+        self._observe: Any = None
         index = np.argwhere(self.safe_set.safe)
         #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
         self.vertices: FloatArray = np.stack(
@@ -457,7 +458,24 @@ class OrientCore:
 
     def observe(self, rows: IntArray, rngs: list[np.random.Generator]) -> npt.NDArray[np.float32]:
         """Observations of ``rows`` (n, 21), float32, with noise drawn from each row's
-        own generator when ``observation_noise`` > 0."""
+        own generator when ``observation_noise`` > 0 (without noise, by the compiled
+        :func:`~spm_pin.envs._observe_kernel.observe_rows` where numba is installed
+        and ``fused`` is on: the same numbers)."""
+        sigma = self.settings.observation_noise
+        if sigma == 0.0 and self.fused and _jit.available():
+            if self._observe is None:
+                self._observe = _jit.kernels(_observe_kernel.KERNELS)["observe_rows"]
+            out = np.empty((rows.size, OBSERVATION_SIZE), dtype=np.float32)
+            self._observe(
+                np.ascontiguousarray(rows, dtype=np.int64),
+                self.R,
+                self.goal,
+                self.theta,
+                self.speed,
+                float(self.limits.max_speed),
+                out,
+            )
+            return out
         theta = self.theta[rows]
         obs = np.concatenate(
             [
@@ -469,7 +487,6 @@ class OrientCore:
             ],
             axis=-1,
         )
-        sigma = self.settings.observation_noise
         if sigma > 0.0:
             noise = np.stack([rngs[int(i)].normal(0.0, sigma, _NOISY.size) for i in rows])
             obs[:, _NOISY] = np.clip(obs[:, _NOISY] + noise, -1.0, 1.0)
