@@ -270,3 +270,22 @@ def test_the_platform_rotation_is_that_of_forward_kinematics() -> None:
         assert fk.reachable.all()
         np.testing.assert_allclose(env.core.R, fk.R, atol=1e-12)
     assert clipped > 0
+
+
+def test_a_steps_extra_info_is_the_vector_envs_row_and_a_copy() -> None:
+    from spm_pin.envs._dynamic import EXTRA_INFO
+
+    vec = OrientDynamicVectorEnv(2, max_steps=50)
+    single = OrientDynamicEnv(max_steps=50)
+    vec.reset(seed=3)
+    single.reset(seed=3)  # sub-environment 0 of the vector env
+    action = np.array([0.4, -0.2, 0.1], dtype=np.float32)
+    info_v = vec.step(np.stack([action, -action]))[4]
+    info = single.step(action)[4]
+    for key in EXTRA_INFO:
+        np.testing.assert_array_equal(info[key], info_v[key][0], err_msg=key)
+    assert info["theta_dot"].shape == (3,) and isinstance(info["servo_load"], float)
+    before = info["theta_dot"].copy()
+    single.core.speed[0] += 1.0  # the info keeps the step's values, not a view
+    np.testing.assert_array_equal(info["theta_dot"], before)
+    assert np.any(before != 0.0)

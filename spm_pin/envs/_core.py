@@ -318,6 +318,8 @@ class OrientCore:
         terminated = success | unsafe
         truncated = (self.steps[rows] >= self.settings.max_steps) & ~terminated
         result = StepResult(out[:, 0], terminated, truncated, out[:, 1], out[:, 2], success, unsafe)
+        if not handed.any():
+            return result
         back = np.flatnonzero(handed)
         if count:
             self.handed_rows += int(back.size)
@@ -462,7 +464,7 @@ class OrientCore:
         :func:`~spm_pin.envs._observe_kernel.observe_rows` where numba is installed
         and ``fused`` is on: the same numbers)."""
         sigma = self.settings.observation_noise
-        if sigma == 0.0 and self.fused and _jit.available():
+        if sigma == 0.0 and self.fused and (self._observe is not None or _jit.available()):
             if self._observe is None:
                 self._observe = _jit.kernels(_observe_kernel.KERNELS)["observe_rows"]
             out = np.empty((rows.size, OBSERVATION_SIZE), dtype=np.float32)

@@ -41,7 +41,6 @@ import threading
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from .. import _jit
 from ..dynamics import XM540_W150, ReducedDynamics, ServoModel
@@ -56,6 +55,8 @@ __all__ = ["ACTUATIONS", "INTEGRATORS", "DynamicCore", "PhysicsSettings", "physi
 ACTUATIONS = ("position", "torque")
 #: The integrators of :meth:`~spm_pin.dynamics.ReducedDynamics.step`.
 INTEGRATORS = ("euler", "rk4")
+#: The keys :meth:`DynamicCore.extra_info` adds to a step's info.
+EXTRA_INFO = ("theta_dot", "servo_goal", "torque", "torque_speed", "servo_load")
 #: Fewest rows in a chunk of a period shared among threads (below, handing the work
 #: to a thread costs more than it saves).
 THREADED_ROWS = 256
@@ -256,6 +257,8 @@ class DynamicCore(OrientCore):
         """Into how many chunks (threads) a compiled period of ``rows`` rows is cut:
         at most :attr:`threads`, each of at least :data:`THREADED_ROWS` rows; 1: one
         call."""
+        if rows < 2 * THREADED_ROWS:  # one chunk (and no system call to count cores)
+            return 1
         return max(1, min(self._threads or _cores(), rows // THREADED_ROWS))
 
     def reset_rows(self, rows: IntArray, rngs: list[np.random.Generator]) -> None:
@@ -650,16 +653,14 @@ class DynamicCore(OrientCore):
         except SPMError:  # a row without a home-mode assembly: it keeps its rotation
             return super().rotations(rows, theta)
 
-    def extra_info(self, rows: IntArray) -> dict[str, npt.NDArray[np.float64]]:
-        """What the dynamic environments add to a step's info, per row: the real input
+    def extra_info(self, rows: IntArray | int) -> dict[str, Any]:
+        """What the dynamic environments add to a step's info, per row (an index
+        array: arrays of those rows; one row's int: its values): the real input
         speeds ``theta_dot`` [rad/s], the servos' goal positions ``servo_goal`` [rad],
         the motor torques of the last physics step ``torque`` [N m] and the speeds
         ``torque_speed`` [rad/s] they were applied at, and the largest ``servo_load``
-        of the period (<= 1 inside the torque-speed envelope)."""
-        return {
-            "theta_dot": self.speed[rows].copy(),
-            "servo_goal": self.servo_goal[rows].copy(),
-            "torque": self.torque[rows].copy(),
-            "torque_speed": self.torque_speed[rows].copy(),
-            "servo_load": self.servo_load[rows].copy(),
-        }
+        of the period (<= 1 inside the torque-speed envelope). Copies, never views."""
+        arrays = (self.speed, self.servo_goal, self.torque, self.torque_speed, self.servo_load)
+        if isinstance(rows, np.ndarray):  # indexing by an array copies
+            return {key: array[rows] for key, array in zip(EXTRA_INFO, arrays, strict=True)}
+        return {key: array[rows].copy() for key, array in zip(EXTRA_INFO, arrays, strict=True)}

@@ -35,8 +35,8 @@ ends, as the numpy path after its loop; a row it cannot end (a state the safe se
 must check, a rotation not settled) is handed back to numpy. :func:`step` takes whole
 control periods robot after robot: the command of the action, :func:`period` of the
 robot alone and :func:`finish` (a robot's data stay in the cache through its
-period); a robot it cannot step is left untouched for the numpy path. Nothing here checks
-its arguments: the caller passes C-contiguous arrays of the right types.
+period); a robot it cannot step is left untouched for the numpy path. Nothing here
+checks its arguments: the caller passes C-contiguous arrays of the right types.
 """
 
 from __future__ import annotations

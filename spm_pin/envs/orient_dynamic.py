@@ -31,7 +31,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 import numpy.typing as npt
 
 from ._dynamic import DynamicCore, PhysicsSettings, physics_from
@@ -39,8 +38,6 @@ from .orient import ObsArray, OrientEnv
 from .settings import OrientSettings
 
 __all__ = ["OrientDynamicEnv"]
-
-_ROW = np.array([0], dtype=np.intp)
 
 
 class OrientDynamicEnv(OrientEnv):
@@ -77,5 +74,5 @@ class OrientDynamicEnv(OrientEnv):
     def step(self, action: npt.ArrayLike) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
         """One control period with the normalised action (3,) in [-1, 1]."""
         obs, reward, terminated, truncated, info = super().step(action)
-        info.update({key: value[0] for key, value in self.core.extra_info(_ROW).items()})
+        info.update(self.core.extra_info(0))
         return obs, reward, terminated, truncated, info
