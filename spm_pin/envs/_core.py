@@ -323,10 +323,9 @@ class OrientCore:
         back = np.flatnonzero(handed)
         if count:
             self.handed_rows += int(back.size)
-        if back.size:
-            numpy_rows = rest(back)
-            for field in dataclasses.fields(StepResult):
-                getattr(result, field.name)[back] = getattr(numpy_rows, field.name)
+        numpy_rows = rest(back)
+        for field in dataclasses.fields(StepResult):
+            getattr(result, field.name)[back] = getattr(numpy_rows, field.name)
         return result
 
     def fused_arguments(self) -> tuple[Any, ...] | None:

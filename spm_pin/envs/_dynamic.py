@@ -229,6 +229,7 @@ class DynamicCore(OrientCore):
         self._fused_kernel: Any = None
         self._finish_kernel: Any = None
         self._step_kernel: Any = None
+        self._physics_args: tuple[Any, ...] | None = None
 
     @property
     def threads(self) -> int | None:
@@ -383,24 +384,30 @@ class DynamicCore(OrientCore):
         records: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
     ) -> int:
         """``kernel`` (a period) called on the state, the drive and the records."""
-        done: int = kernel(
-            *state,
-            *drive,
-            self.physics.actuation == "position",
-            self._servo_constants(),
-            float(self.dt),
-            int(self.substeps),
-            self.physics.integrator == "rk4",
-            self.dynamics._constants(),
-            *records,
-        )
+        done: int = kernel(*state, *drive, *self._physics_arguments(), *records)
         return done
 
-    def _servo_constants(self) -> tuple[float, float, float, float]:
-        """The kernels' servo: (kp, kd, stall torque, no-load speed)."""
-        servo = self.servo
-        kp, kd = float(servo.kp), float(servo.kd)
-        return kp, kd, float(servo.stall_torque), float(servo.no_load_speed)
+    def _physics_arguments(self) -> tuple[Any, ...]:
+        """What the compiled period and step take of the physics, which does not
+        change (made once): ``"position"`` actuation, the servo (kp, kd, stall torque,
+        no-load speed), the physics step, the steps per period, rk4, the reduced
+        dynamics' constants."""
+        if self._physics_args is None:
+            servo = self.servo
+            self._physics_args = (
+                self.physics.actuation == "position",
+                (
+                    float(servo.kp),
+                    float(servo.kd),
+                    float(servo.stall_torque),
+                    float(servo.no_load_speed),
+                ),
+                float(self.dt),
+                int(self.substeps),
+                self.physics.integrator == "rk4",
+                self.dynamics._constants(),
+            )
+        return self._physics_args
 
     def _last_safe(self, path: FloatArray, rows: IntArray, high: IntArray) -> IntArray:
         """For each of ``rows`` (indices into the path's robots): the last physics step
@@ -484,12 +491,7 @@ class DynamicCore(OrientCore):
             self.goal,
             self.hold,
             self.steps,
-            self.physics.actuation == "position",
-            self._servo_constants(),
-            float(self.dt),
-            int(self.substeps),
-            self.physics.integrator == "rk4",
-            self.dynamics._constants(),
+            *self._physics_arguments(),
             motion,
             flags,
             weights,
@@ -612,8 +614,7 @@ class DynamicCore(OrientCore):
         goals and :meth:`settle`."""
         s = self.settings
         n = rows.size
-        theta, speed = p.theta.copy(), p.speed.copy()
-        goal_speed = p.goal_speed.copy()
+        theta, speed, goal_speed = p.theta, p.speed, p.goal_speed  # the period's own: ended here
         safe = ~p.failed
         safe[safe] = self.safe(theta[safe])
         fraction = np.ones(n)
