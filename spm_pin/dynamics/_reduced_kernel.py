@@ -311,6 +311,102 @@ def _settle(
     return ok, R
 
 
+@_jit.inline
+def _leg_terms(
+    ui: Vec,
+    wi: Vec,
+    vi: Vec,
+    ai: Vec,
+    e: Vec,
+    P: Vec,
+    frame_inv: FloatArray,
+    dist_inertia: FloatArray,
+    dist_moment: FloatArray,
+    prox_moment: FloatArray,
+    cos_i: float,
+    sin_i: float,
+    grav: Vec,
+    bias: bool,
+    alpha_p: Vec,
+    psi_dot: float,
+    chi_dot: float,
+    w_dot: Vec,
+    v_dot: Vec,
+    s_i: Vec,
+    uw: Vec,
+    ri: float,
+) -> Any:
+    """What leg i adds to M (its entries 00, 01, 02, 11, 12, 22), to g and to c (zero
+    without ``bias``): its distal link and its proximal link's weight. e = e_i,
+    P = Psi_i; the rest are leg i's elements of :func:`_row_terms`' quantities."""
+    # The distal link turns with D_i = [w_i v_i a_i] F_i^-1 and at
+    # omega_d,i = W theta_dot, W = u_i e_i^T + w_i Psi_i^T: in its frame the axes
+    # u_i, w_i are x = D^T u_i, y = D^T w_i (D^T = F_i^-T [w_i v_i a_i]^T), so
+    # W^T D I_d D^T W = xx e e^T + xy (e Psi_i^T + Psi_i e^T) + yy Psi_i Psi_i^T.
+    Fi = _mat_of(frame_inv)
+    I_d = _mat_of(dist_inertia)
+    x = _mat_t_vec(Fi, (_dot(wi, ui), _dot(vi, ui), _dot(ai, ui)))
+    y = _mat_t_vec(Fi, (_dot(wi, wi), _dot(vi, wi), _dot(ai, wi)))
+    Ix = _mat_vec(I_d, x)
+    Iy = _mat_vec(I_d, y)
+    xx, xy, yy = _dot(x, Ix), _dot(y, Ix), _dot(y, Iy)
+    m = (
+        _pair(e, P, xx, xy, yy, 0, 0),
+        _pair(e, P, xx, xy, yy, 0, 1),
+        _pair(e, P, xx, xy, yy, 0, 2),
+        _pair(e, P, xx, xy, yy, 1, 1),
+        _pair(e, P, xx, xy, yy, 1, 2),
+        _pair(e, P, xx, xy, yy, 2, 2),
+    )
+    # gravity: the distal link's weight (first moment D h = [w v a] F^-1 h), and the
+    # proximal link's
+    p = _mat_vec(Fi, _vec_of(dist_moment))
+    dist_h = (
+        wi[0] * p[0] + vi[0] * p[1] + ai[0] * p[2],
+        wi[1] * p[0] + vi[1] * p[1] + ai[1] * p[2],
+        wi[2] * p[0] + vi[2] * p[1] + ai[2] * p[2],
+    )
+    weight = _cross(dist_h, grav)
+    gu, gw = _dot(ui, weight), _dot(wi, weight)  # W^T z = e (u.z) + Psi_i (w.z)
+    prox_h = _rotate(ui, cos_i, sin_i, _vec_of(prox_moment))
+    gi = -_dot(ui, _cross(prox_h, grav))
+    g = (
+        gi * e[0] - (gu * e[0] + gw * P[0]),
+        gi * e[1] - (gu * e[1] + gw * P[1]),
+        gi * e[2] - (gu * e[2] + gw * P[2]),
+    )
+    c = (0.0, 0.0, 0.0)
+    if bias:
+        psi_ddot = _dot(
+            (
+                alpha_p[0] - psi_dot * w_dot[0] - chi_dot * v_dot[0],
+                alpha_p[1] - psi_dot * w_dot[1] - chi_dot * v_dot[1],
+                alpha_p[2] - psi_dot * w_dot[2] - chi_dot * v_dot[2],
+            ),
+            s_i,
+        )
+        # in the link's frame: omega_d = x rate_i + y psi_dot_i, and
+        # alpha_d = psi_ddot y + psi_dot_i rate_i z, z = D^T (u_i x w_i)
+        z = _mat_t_vec(Fi, (_dot(wi, uw), _dot(vi, uw), _dot(ai, uw)))
+        Iz = _mat_vec(I_d, z)
+        spin = psi_dot * ri
+        od = (x[0] * ri + y[0] * psi_dot, x[1] * ri + y[1] * psi_dot, x[2] * ri + y[2] * psi_dot)
+        Iod = (
+            Ix[0] * ri + Iy[0] * psi_dot,
+            Ix[1] * ri + Iy[1] * psi_dot,
+            Ix[2] * ri + Iy[2] * psi_dot,
+        )
+        gyro = _cross(od, Iod)
+        q = (
+            Iy[0] * psi_ddot + Iz[0] * spin + gyro[0],
+            Iy[1] * psi_ddot + Iz[1] * spin + gyro[1],
+            Iy[2] * psi_ddot + Iz[2] * spin + gyro[2],
+        )
+        cu, cw = _dot(x, q), _dot(y, q)  # W^T D q = e (x.q) + Psi_i (y.q)
+        c = (cu * e[0] + cw * P[0], cu * e[1] + cw * P[1], cu * e[2] + cw * P[2])
+    return m, g, c
+
+
 # ------------------------------------------------------------------ dynamics
 @_jit.inline
 def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
@@ -369,9 +465,6 @@ def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias
         _leg_row(vJ[2], vu[2], vw[2], _unit(2), Psi[2]),
     )
     # omega_d,i = W_d,i theta_dot, W_d,i[m][j] = u_i[m] e_ij + w_i[m] Psi_i[j]
-    M00 = M01 = M02 = M11 = M12 = M22 = 0.0
-    g0 = g1 = g2 = 0.0
-    c0 = c1 = c2 = 0.0
     omega_p = _mat_vec(J, rate)
     psi_dot = _mat_vec(Psi, rate)
     chi_dot = _mat_vec(Chi, rate)
@@ -391,69 +484,32 @@ def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias
         )
         alpha_p = _mat_t_vec(cof, rhs)
         alpha_p = (alpha_p[0] / det, alpha_p[1] / det, alpha_p[2] / det)
-    for i in range(3):
-        wi, ui, vi, ai = w[i], u[i], v[i], a[i]
-        e, P = _unit(i), Psi[i]
-        # The distal link turns with D_i = [w_i v_i a_i] F_i^-1 and at
-        # omega_d,i = W theta_dot, W = u_i e_i^T + w_i Psi_i^T: in its frame the axes
-        # u_i, w_i are x = D^T u_i, y = D^T w_i (D^T = F_i^-T [w_i v_i a_i]^T), so
-        # W^T D I_d D^T W = xx e e^T + xy (e Psi_i^T + Psi_i e^T) + yy Psi_i Psi_i^T.
-        Fi = _mat_of(frame_inv[i])
-        I_d = _mat_of(dist_inertia[i])
-        x = _mat_t_vec(Fi, (_dot(wi, ui), _dot(vi, ui), _dot(ai, ui)))
-        y = _mat_t_vec(Fi, (_dot(wi, wi), _dot(vi, wi), _dot(ai, wi)))
-        Ix = _mat_vec(I_d, x)
-        Iy = _mat_vec(I_d, y)
-        xx, xy, yy = _dot(x, Ix), _dot(y, Ix), _dot(y, Iy)
-        M00 += _pair(e, P, xx, xy, yy, 0, 0)
-        M01 += _pair(e, P, xx, xy, yy, 0, 1)
-        M02 += _pair(e, P, xx, xy, yy, 0, 2)
-        M11 += _pair(e, P, xx, xy, yy, 1, 1)
-        M12 += _pair(e, P, xx, xy, yy, 1, 2)
-        M22 += _pair(e, P, xx, xy, yy, 2, 2)
-        # gravity: the distal link's weight (first moment D h = [w v a] F^-1 h), and
-        # the proximal link's
-        p = _mat_vec(Fi, _vec_of(dist_moment[i]))
-        dist_h = (
-            wi[0] * p[0] + vi[0] * p[1] + ai[0] * p[2],
-            wi[1] * p[0] + vi[1] * p[1] + ai[1] * p[2],
-            wi[2] * p[0] + vi[2] * p[1] + ai[2] * p[2],
-        )
-        weight = _cross(dist_h, grav)
-        gu, gw = _dot(ui, weight), _dot(wi, weight)  # W^T z = e (u.z) + Psi_i (w.z)
-        prox_h = _rotate(ui, cos[i], sin[i], _vec_of(prox_moment[i]))
-        gi = -_dot(ui, _cross(prox_h, grav))
-        g0 += gi * e[0] - (gu * e[0] + gw * P[0])
-        g1 += gi * e[1] - (gu * e[1] + gw * P[1])
-        g2 += gi * e[2] - (gu * e[2] + gw * P[2])
-        if bias:
-            psi_ddot = _dot(
-                (
-                    alpha_p[0] - psi_dot[i] * w_dot[i][0] - chi_dot[i] * v_dot[i][0],
-                    alpha_p[1] - psi_dot[i] * w_dot[i][1] - chi_dot[i] * v_dot[i][1],
-                    alpha_p[2] - psi_dot[i] * w_dot[i][2] - chi_dot[i] * v_dot[i][2],
-                ),
-                s[i],
-            )
-            # in the link's frame: omega_d = x rate_i + y psi_dot_i, and
-            # alpha_d = psi_ddot y + psi_dot_i rate_i z, z = D^T (u_i x w_i)
-            uw = uxw[i]
-            z = _mat_t_vec(Fi, (_dot(wi, uw), _dot(vi, uw), _dot(ai, uw)))
-            Iz = _mat_vec(I_d, z)
-            ri, pi = rate[i], psi_dot[i]
-            spin = pi * ri
-            od = (x[0] * ri + y[0] * pi, x[1] * ri + y[1] * pi, x[2] * ri + y[2] * pi)
-            Iod = (Ix[0] * ri + Iy[0] * pi, Ix[1] * ri + Iy[1] * pi, Ix[2] * ri + Iy[2] * pi)
-            gyro = _cross(od, Iod)
-            q = (
-                Iy[0] * psi_ddot + Iz[0] * spin + gyro[0],
-                Iy[1] * psi_ddot + Iz[1] * spin + gyro[1],
-                Iy[2] * psi_ddot + Iz[2] * spin + gyro[2],
-            )
-            cu, cw = _dot(x, q), _dot(y, q)  # W^T D q = e (x.q) + Psi_i (y.q)
-            c0 += cu * e[0] + cw * P[0]
-            c1 += cu * e[1] + cw * P[1]
-            c2 += cu * e[2] + cw * P[2]
+    # leg by leg, each with its own elements (an unrolled loop: tuples indexed by a
+    # constant stay in registers)
+    legs = (
+        _leg_terms(u[0], w[0], v[0], a[0], _unit(0), Psi[0], frame_inv[0], dist_inertia[0],
+                   dist_moment[0], prox_moment[0], cos[0], sin[0], grav, bias, alpha_p,
+                   psi_dot[0], chi_dot[0], w_dot[0], v_dot[0], s[0], uxw[0], rate[0]),
+        _leg_terms(u[1], w[1], v[1], a[1], _unit(1), Psi[1], frame_inv[1], dist_inertia[1],
+                   dist_moment[1], prox_moment[1], cos[1], sin[1], grav, bias, alpha_p,
+                   psi_dot[1], chi_dot[1], w_dot[1], v_dot[1], s[1], uxw[1], rate[1]),
+        _leg_terms(u[2], w[2], v[2], a[2], _unit(2), Psi[2], frame_inv[2], dist_inertia[2],
+                   dist_moment[2], prox_moment[2], cos[2], sin[2], grav, bias, alpha_p,
+                   psi_dot[2], chi_dot[2], w_dot[2], v_dot[2], s[2], uxw[2], rate[2]),
+    )  # fmt: skip
+    (m0, h0, q0), (m1, h1, q1), (m2, h2, q2) = legs
+    M00 = 0.0 + m0[0] + m1[0] + m2[0]
+    M01 = 0.0 + m0[1] + m1[1] + m2[1]
+    M02 = 0.0 + m0[2] + m1[2] + m2[2]
+    M11 = 0.0 + m0[3] + m1[3] + m2[3]
+    M12 = 0.0 + m0[4] + m1[4] + m2[4]
+    M22 = 0.0 + m0[5] + m1[5] + m2[5]
+    g0 = 0.0 + h0[0] + h1[0] + h2[0]
+    g1 = 0.0 + h0[1] + h1[1] + h2[1]
+    g2 = 0.0 + h0[2] + h1[2] + h2[2]
+    c0 = 0.0 + q0[0] + q1[0] + q2[0]
+    c1 = 0.0 + q0[1] + q1[1] + q2[1]
+    c2 = 0.0 + q0[2] + q1[2] + q2[2]
     # the platform
     Jp = _mat_t_mul(R, J)  # R^T J
     part = _mat_t_mul(Jp, _mat_mul(I_p, Jp))
@@ -722,6 +778,7 @@ KERNELS = (
     _leg_row,
     _pair,
     _rate_rhs,
+    _leg_terms,
     _trig,
     _proximal,
     _cofactors,
