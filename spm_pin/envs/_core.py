@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -28,11 +28,14 @@ from . import _kinematic_kernel, _observe_kernel
 from ._safe_lookup import SafeLookup
 from .settings import OrientSettings
 
-__all__ = ["OBSERVATION_SIZE", "OrientCore", "StepResult", "geodesic_angle"]
+__all__ = ["OBSERVATION_SIZE", "OrientCore", "StepOne", "StepResult", "geodesic_angle"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.intp]
+
+#: The rows of a single environment's robot.
+_ROW = np.array([0], dtype=np.intp)
 
 #: Platform rotation (6), goal (6), sin and cos of the inputs (6), speeds (3).
 OBSERVATION_SIZE = 21
@@ -79,6 +82,32 @@ class StepResult:
     unsafe: BoolArray
 
 
+class StepOne(NamedTuple):
+    """What one step of a single robot gives (:class:`StepResult`'s fields, as
+    Python numbers)."""
+
+    reward: float
+    terminated: bool
+    truncated: bool
+    error: float
+    fraction: float
+    success: bool
+    unsafe: bool
+
+    @classmethod
+    def of(cls, result: StepResult) -> StepOne:
+        """Row 0 of ``result``."""
+        return cls(
+            float(result.reward[0]),
+            bool(result.terminated[0]),
+            bool(result.truncated[0]),
+            float(result.error[0]),
+            float(result.fraction[0]),
+            bool(result.success[0]),
+            bool(result.unsafe[0]),
+        )
+
+
 class OrientCore:
     """N kinematic robots stepped as numpy batches (see the module).
 
@@ -106,6 +135,8 @@ class OrientCore:
         self._kernel: Any = None
         self._kernel_args: tuple[Any, ...] = ()
         self._observe: Any = None
+        #: :meth:`step_one`'s buffers (rows, actions, out, handed, counts).
+        self._one: tuple[Any, ...] | None = None
         index = np.argwhere(self.safe_set.safe)
         #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
         self.vertices: FloatArray = np.stack(
@@ -272,15 +303,37 @@ class OrientCore:
         arguments = self.fused_arguments()
         if arguments is None or rows.size == 0:
             return self._step_numpy(rows, action)
-        if self._kernel is None:
-            self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["step"]
         n = rows.size
         out = np.empty((n, 5))
         handed = np.zeros(n, dtype=bool)
         counts = np.zeros(2, dtype=np.int64)
-        self._kernel(
+        self._call_step(
             np.ascontiguousarray(rows, dtype=np.int64),
             np.ascontiguousarray(action, dtype=np.float64),
+            out,
+            handed,
+            counts,
+            arguments,
+        )
+        return self.kernel_result(
+            rows, out, handed, counts, lambda back: self._step_numpy(rows[back], action[back])
+        )
+
+    def _call_step(
+        self,
+        rows: IntArray,
+        action: FloatArray,
+        out: FloatArray,
+        handed: BoolArray,
+        counts: IntArray,
+        arguments: tuple[Any, ...],
+    ) -> None:
+        """The compiled :func:`~spm_pin.envs._kinematic_kernel.step` of ``rows``."""
+        if self._kernel is None:
+            self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["step"]
+        self._kernel(
+            rows,
+            action,
             self.theta,
             self.speed,
             self.R,
@@ -292,8 +345,47 @@ class OrientCore:
             handed,
             counts,
         )
-        return self.kernel_result(
-            rows, out, handed, counts, lambda back: self._step_numpy(rows[back], action[back])
+
+    def _compiled_step(self) -> tuple[Any, ...] | None:
+        """:meth:`fused_arguments` where :meth:`_call_step` applies, else None."""
+        return self.fused_arguments()
+
+    def _hand_back(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """Step ``rows`` that the compiled step handed back, by numpy (counted in
+        ``handed_rows``)."""
+        self.handed_rows += int(rows.size)
+        return self._step_numpy(rows, action)
+
+    def step_one(self, action: FloatArray) -> StepOne:
+        """:meth:`step_rows` of robot 0 alone (a single environment's) with the
+        normalised action (3,): the same step, with less work around the compiled
+        kernel (its buffers made once, the result read as Python numbers)."""
+        arguments = self._compiled_step()
+        if arguments is None:
+            return StepOne.of(self.step_rows(_ROW, action[None]))
+        if self._one is None:
+            self._one = (
+                np.zeros(1, dtype=np.int64),
+                np.empty((1, 3)),
+                np.empty((1, 5)),
+                np.zeros(1, dtype=bool),
+                np.zeros(2, dtype=np.int64),
+            )
+        rows, actions, out, handed, counts = self._one
+        actions[0] = action
+        handed[0] = False
+        counts[:] = 0
+        self._call_step(rows, actions, out, handed, counts, arguments)
+        assert self.lookup is not None
+        self.lookup.asked += int(counts[0])
+        self.lookup.settled += int(counts[1])
+        if handed[0]:
+            return StepOne.of(self._hand_back(_ROW, actions.copy()))
+        reward, error, fraction, success, unsafe = out[0].tolist()
+        terminated = success != 0.0 or unsafe != 0.0
+        truncated = not terminated and int(self.steps[0]) >= self.settings.max_steps
+        return StepOne(
+            reward, terminated, truncated, error, fraction, success != 0.0, unsafe != 0.0
         )
 
     def kernel_result(

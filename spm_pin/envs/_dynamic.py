@@ -387,6 +387,19 @@ class DynamicCore(OrientCore):
         done: int = kernel(*state, *drive, *self._physics_arguments(), *records)
         return done
 
+    def _compiled_step(self) -> tuple[Any, ...] | None:
+        """:meth:`fused_arguments` where the compiled step applies (the compiled period
+        too), else None."""
+        arguments = self.fused_arguments()
+        if arguments is None or self._period_kernel() is None:
+            return None
+        return arguments
+
+    def _hand_back(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """Step ``rows`` that the compiled step handed back, period by period (the
+        rows whose end numpy makes are counted in ``handed_rows`` there)."""
+        return self._step_periods(rows, action)
+
     def _physics_arguments(self) -> tuple[Any, ...]:
         """What the compiled period and step take of the physics, which does not
         change (made once): ``"position"`` actuation, the servo (kp, kd, stall torque,
@@ -429,11 +442,9 @@ class DynamicCore(OrientCore):
         a cover and numba, robot by robot in one compiled call
         (:func:`~spm_pin.envs._dynamic_kernel.step`, chunks of rows in threads), the
         robots it hands back by :meth:`_step_periods`; else :meth:`_step_periods`."""
-        arguments = self.fused_arguments()
-        if arguments is None or rows.size == 0 or self._period_kernel() is None:
+        arguments = self._compiled_step()
+        if arguments is None or rows.size == 0:
             return self._step_periods(rows, action)
-        if self._step_kernel is None:
-            self._step_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["step"]
         n = rows.size
         out = np.empty((n, 5))
         handed = np.zeros(n, dtype=bool)
@@ -476,6 +487,8 @@ class DynamicCore(OrientCore):
         arguments: tuple[Any, ...],
     ) -> None:
         """The compiled :func:`~spm_pin.envs._dynamic_kernel.step` of ``rows``."""
+        if self._step_kernel is None:
+            self._step_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["step"]
         motion, flags, weights, low, high, cover = arguments[:6]
         self._step_kernel(
             rows,

@@ -39,7 +39,7 @@ import numpy.typing as npt
 from gymnasium import spaces
 
 from ..errors import InputError
-from ._core import OBSERVATION_SIZE, OrientCore
+from ._core import _ROW, OBSERVATION_SIZE, OrientCore
 from ._render import HumanView, draw_frame
 from .settings import OrientSettings
 
@@ -48,7 +48,6 @@ __all__ = ["RENDER_MODES", "OrientEnv", "settings_from"]
 ObsArray = npt.NDArray[np.float32]
 #: The render modes of both environments.
 RENDER_MODES = ("rgb_array", "human")
-_ROW = np.array([0], dtype=np.intp)
 
 
 def settings_from(settings: OrientSettings | None, options: dict[str, Any]) -> OrientSettings:
@@ -102,7 +101,7 @@ def check_actions(actions: npt.ArrayLike, shape: tuple[int, ...]) -> npt.NDArray
             argument="action",
             value=actions,
         ) from None
-    if values.shape != shape or not np.all(np.isfinite(values)):
+    if values.shape != shape or not np.isfinite(values).all():
         raise InputError(
             f"action must be finite numbers of shape {shape}, got shape {values.shape}",
             argument="action",
@@ -169,23 +168,15 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
     def step(self, action: npt.ArrayLike) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
         """One control period with the commanded speeds ``action`` (3,) in [-1, 1]."""
         values = check_actions(action, (3,))
-        result = self.core.step_rows(_ROW, values[None])
+        result = self.core.step_one(values)
         obs = self.core.observe(_ROW, [self.np_random])[0]
-        info = self._info(float(result.error[0]))
-        info.update(
-            step_fraction=float(result.fraction[0]),
-            success=bool(result.success[0]),
-            unsafe=bool(result.unsafe[0]),
-        )
+        info = self._info(result.error)
+        info["step_fraction"] = result.fraction
+        info["success"] = result.success
+        info["unsafe"] = result.unsafe
         if self.render_mode == "human":
             self.render()
-        return (
-            obs,
-            float(result.reward[0]),
-            bool(result.terminated[0]),
-            bool(result.truncated[0]),
-            info,
-        )
+        return obs, result.reward, result.terminated, result.truncated, info
 
     def render(self) -> npt.NDArray[np.uint8] | None:
         """The picture of the robot (``rgb_array``) or the meshcat scene (``human``)."""

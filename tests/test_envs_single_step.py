@@ -1,0 +1,119 @@
+"""The single environments' step (``OrientCore.step_one``): robot 0 alone through the
+compiled kernel with buffers made once and its result read as Python numbers.
+
+It must be the vector environment's step of one robot: the same observations,
+rewards, ends, info and counters of the cover's checks, for the kinematic and the
+dynamic environment; a robot the kernel hands back is stepped by numpy as in
+``step_rows``; without the compiled step (``fused`` off) it is ``step_rows`` itself.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gymnasium")
+
+from spm_pin import _jit
+from spm_pin.envs import OrientDynamicEnv, OrientDynamicVectorEnv, OrientEnv, OrientVectorEnv
+
+needs_numba = pytest.mark.skipif(not _jit.available(), reason="numba is not installed")
+
+KINDS = ("kinematic", "dynamic")
+
+
+def _pair(kind: str, cover: str, **options: Any) -> tuple[Any, Any]:
+    """A single env and a vector env of one robot, with the same options."""
+    options = {"cover": cover, "cover_only": True, "max_steps": 30, **options}
+    if kind == "kinematic":
+        return OrientEnv(**options), OrientVectorEnv(1, **options)
+    return OrientDynamicEnv(**options), OrientDynamicVectorEnv(1, **options)
+
+
+def _actions(seed: int, steps: int) -> np.ndarray:
+    """Seeded actions (steps, 3), each held for 4 steps (the robot meets the boundary)."""
+    rng = np.random.default_rng(seed)
+    return np.repeat(rng.uniform(-1.0, 1.0, size=(steps // 4 + 1, 3)), 4, axis=0)[:steps]
+
+
+def _same_step(single: Any, vector: Any, action: np.ndarray) -> bool:
+    """Step both with ``action``; assert the same outcome; True at an episode's end."""
+    obs, reward, terminated, truncated, info = single.step(action)
+    v_obs, v_reward, v_terminated, v_truncated, v_info = vector.step(action[None])
+    np.testing.assert_array_equal(obs, v_obs[0])
+    assert type(reward) is float and reward == float(v_reward[0])
+    assert type(terminated) is bool and terminated == bool(v_terminated[0])
+    assert type(truncated) is bool and truncated == bool(v_truncated[0])
+    for key, value in info.items():
+        if key in v_info:  # the vector env's ends reset: compare what it kept
+            np.testing.assert_array_equal(value, v_info[key][0], err_msg=key)
+    return terminated or truncated
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_single_step_is_the_vector_step_of_one_robot(env_cover_path: str, kind: str) -> None:
+    """Step for step, the single env gives what the vector env gives its one robot,
+    its state is the same, and the cover's checks are counted alike."""
+    single, vector = _pair(kind, env_cover_path, safety="clip")
+    single.reset(seed=7)
+    vector.reset(seed=7)
+    np.testing.assert_array_equal(single.core.theta, vector.core.theta)
+    ends = 0
+    for action in _actions(3, 150):
+        if _same_step(single, vector, action):
+            ends += 1
+            single.reset(seed=7 + ends)
+            vector.reset(seed=7 + ends)
+        for name in ("theta", "speed", "R", "goal", "hold", "steps"):
+            np.testing.assert_array_equal(getattr(single.core, name), getattr(vector.core, name))
+    a, b = single.core.lookup, vector.core.lookup
+    assert a.asked > 0 and (a.asked, a.settled) == (b.asked, b.settled)
+    assert single.core._one is not None and ends > 0
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_robot_handed_back_is_stepped_by_numpy(env_cover_path: str, kind: str) -> None:
+    """The kernel hands robot 0 back at every step: the step is the numpy path's (the
+    same as with ``fused`` off), and the kinematic core counts each hand-back."""
+    fused, _ = _pair(kind, env_cover_path, safety="terminate")
+    numpy, _ = _pair(kind, env_cover_path, safety="terminate")
+    numpy.core.fused = False
+    calls: list[int] = []
+
+    def hand_back(rows: Any, action: Any, out: Any, handed: Any, *args: Any) -> None:
+        calls.append(int(rows.size))
+        handed[:] = True
+
+    fused.core._call_step = hand_back
+    fused.reset(seed=11)
+    numpy.reset(seed=11)
+    steps = 0
+    for action in _actions(5, 80):
+        x, y = fused.step(action), numpy.step(action)
+        steps += 1
+        np.testing.assert_allclose(x[0], y[0], rtol=0.0, atol=1e-6)
+        assert x[1:4] == pytest.approx(y[1:4], rel=0.0, abs=1e-9)
+        assert x[4]["step_fraction"] == y[4]["step_fraction"]
+        if x[2] or x[3]:
+            fused.reset()
+            numpy.reset()
+    assert calls == [1] * steps
+    if kind == "kinematic":
+        assert fused.core.handed_rows == steps
+
+
+@needs_numba
+def test_without_the_compiled_step_it_is_step_rows(env_cover_path: str) -> None:
+    """``fused`` off: ``step_one`` is ``step_rows`` of row 0 (no buffers made)."""
+    single, vector = _pair("dynamic", env_cover_path)
+    for env in (single, vector):
+        env.core.fused = False
+        env.reset(seed=2)
+    for action in _actions(8, 40):
+        if _same_step(single, vector, action):
+            break
+    assert single.core._one is None
