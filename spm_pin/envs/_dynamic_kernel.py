@@ -98,15 +98,6 @@ def _within(x: Vec, bound: float) -> bool:
     return abs(x[0]) <= bound and abs(x[1]) <= bound and abs(x[2]) <= bound
 
 
-def _finite_rotation(R: FloatArray) -> bool:
-    """Every entry finite (the dynamics' check of the warm start)."""
-    for i in range(3):
-        for j in range(3):
-            if not abs(R[i, j]) < math.inf:
-                return False
-    return True
-
-
 def _clip_torque(raw: float, speed: float, stall: float, no_load: float) -> float:
     """``raw`` clipped to the torque-speed envelope at ``speed``: the formula of
     :meth:`~spm_pin.dynamics.ServoModel.torque_limits`, then ``np.clip`` (NaN stays
@@ -150,6 +141,63 @@ def _load(tau: Vec, speed: Vec, stall: float, no_load: float) -> float:
     return largest
 
 
+def _finite_mat(R: Mat) -> bool:
+    """Every entry finite (the dynamics' check of the warm start)."""
+    return _within(R[0], math.inf) and _within(R[1], math.inf) and _within(R[2], math.inf)
+
+
+@_jit.inline
+def _physics_step(
+    th: Vec,
+    sp: Vec,
+    R: Mat,
+    goal_start: Vec,
+    goal_speed: Vec,
+    wanted: Vec,
+    offset: float,
+    position: bool,
+    servo: Servo,
+    dt: float,
+    rk4: bool,
+    k: Constants,
+    u: Mat,
+    w0: Mat,
+) -> tuple[bool, Vec, Vec, Mat, Vec]:
+    """One physics step of one robot at input angles th, speeds sp, warm start R:
+    (taken, th', sp', the rotation at th, the torque); not taken where the numpy loop
+    must take it."""
+    stall, no_load = servo[2], servo[3]
+    if position:
+        raw = (
+            _servo(goal_start[0], goal_speed[0], offset, th[0], sp[0], servo),
+            _servo(goal_start[1], goal_speed[1], offset, th[1], sp[1], servo),
+            _servo(goal_start[2], goal_speed[2], offset, th[2], sp[2], servo),
+        )
+    else:
+        raw = wanted
+    tau = (
+        _clip_torque(raw[0], sp[0], stall, no_load),
+        _clip_torque(raw[1], sp[1], stall, no_load),
+        _clip_torque(raw[2], sp[2], stall, no_load),
+    )
+    if not (
+        _within(th, _ANGLE_BOUND)
+        and _within(sp, _SPEED_BOUND)
+        and _within(tau, _TORQUE_BOUND)
+        and _finite_mat(R)
+    ):
+        return False, th, sp, R, tau
+    cos, sin = _trig(th)
+    w = _proximal(cos, sin, u, w0)
+    settled, rotation = _home_rotation(w, R, k)
+    if not settled:
+        return False, th, sp, R, tau
+    status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, k)
+    if status != STATUS_OK:
+        return False, th, sp, R, tau
+    return True, t, r, rotation, tau
+
+
 @_jit.inline
 def _advance_row(
     row: int,
@@ -174,37 +222,16 @@ def _advance_row(
 ) -> bool:
     """One physics step of ``row`` into the ``*_next`` arrays; False (nothing written)
     where the numpy loop must take it."""
-    stall, no_load = servo[2], servo[3]
-    th = _vec_of(theta[row])
-    sp = _vec_of(speed[row])
+    zero = (0.0, 0.0, 0.0)
     if position:
-        gs, gv = goal_start[row], goal_speed[row]
-        raw = (
-            _servo(gs[0], gv[0], offset, th[0], sp[0], servo),
-            _servo(gs[1], gv[1], offset, th[1], sp[1], servo),
-            _servo(gs[2], gv[2], offset, th[2], sp[2], servo),
-        )
+        drive = (_vec_of(goal_start[row]), _vec_of(goal_speed[row]), zero)
     else:
-        raw = _vec_of(wanted[row])
-    tau = (
-        _clip_torque(raw[0], sp[0], stall, no_load),
-        _clip_torque(raw[1], sp[1], stall, no_load),
-        _clip_torque(raw[2], sp[2], stall, no_load),
-    )
-    if not (
-        _within(th, _ANGLE_BOUND)
-        and _within(sp, _SPEED_BOUND)
-        and _within(tau, _TORQUE_BOUND)
-        and _finite_rotation(R[row])
-    ):
-        return False
-    cos, sin = _trig(th)
-    w = _proximal(cos, sin, u, w0)
-    settled, rotation = _home_rotation(w, _mat_of(R[row]), k)
-    if not settled:
-        return False
-    status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, k)
-    if status != STATUS_OK:
+        drive = (zero, zero, _vec_of(wanted[row]))
+    taken, t, r, rotation, tau = _physics_step(
+        _vec_of(theta[row]), _vec_of(speed[row]), _mat_of(R[row]), drive[0], drive[1],
+        drive[2], offset, position, servo, dt, rk4, k, u, w0,
+    )  # fmt: skip
+    if not taken:
         return False
     _put_mat(R_next[row], rotation)
     for j in range(3):
@@ -311,6 +338,47 @@ def period(
                 tau_next, path, torque, torque_speed, load,
             )  # fmt: skip
     return substeps
+
+
+def _period_one(
+    theta: Vec,
+    speed: Vec,
+    R: Mat,
+    goal_start: Vec,
+    goal_speed: Vec,
+    wanted: Vec,
+    position: bool,
+    servo: Servo,
+    dt: float,
+    substeps: int,
+    rk4: bool,
+    k: Constants,
+    path: FloatArray,
+) -> tuple[int, Vec, Vec, Mat, Vec, Vec, float]:
+    """:func:`period` of one robot, its state held in floats rather than arrays: (the
+    steps completed, theta, speed, R, the last step's torque and the speed it was
+    applied at, the largest servo load); the input angles after each step into
+    ``path`` (substeps + 1, 1, 3) from row 1 on. The same operations as
+    :func:`period`'s; the state returned is meaningful only when every step was
+    completed."""
+    u, w0 = _mat_of(k[0]), _mat_of(k[1])
+    torque = torque_speed = (0.0, 0.0, 0.0)
+    load = 0.0
+    for step in range(substeps):
+        taken, t, r, rotation, tau = _physics_step(
+            theta, speed, R, goal_start, goal_speed, wanted, step * dt, position, servo,
+            dt, rk4, k, u, w0,
+        )  # fmt: skip
+        if not taken:
+            return step, theta, speed, R, torque, torque_speed, load
+        value = _load(tau, speed, servo[2], servo[3])
+        if not load > value:  # np.maximum(load, value)
+            load = value
+        torque, torque_speed = tau, speed
+        theta, speed, R = t, r, rotation
+        for j in range(3):
+            path[step + 1, 0, j] = t[j]
+    return substeps, theta, speed, R, torque, torque_speed, load
 
 
 @_jit.nogil
@@ -471,7 +539,8 @@ def step(
 ) -> None:
     """Whole control periods of ``rows`` with a cover, one robot after the other, in
     place: the command of the action (the servos' goal speed within the acceleration
-    limit, or the torque asked for), :func:`period` of the robot alone, then
+    limit, or the torque asked for), :func:`period` of the robot alone (held in
+    floats, :func:`_period_one`), then
     :func:`finish`; what :meth:`DynamicCore.step_rows
     <spm_pin.envs._dynamic.DynamicCore.step_rows>` does in numpy, the same operations
     in the same order (a robot's period does not depend on the others).
@@ -501,9 +570,6 @@ def step(
     goal_speed = np.empty((1, 3))
     wanted = np.empty((1, 3))
     path = np.empty((substeps + 1, 1, 3))
-    tau = np.empty((1, 3))
-    tau_speed = np.empty((1, 3))
-    load = np.zeros(1)
     for m in range(rows.shape[0]):
         r = rows[m]
         for j in range(3):
@@ -515,41 +581,43 @@ def step(
                 command = _clip(command, servo_speed[r, j] - dv, servo_speed[r, j] + dv)
             goal_speed[0, j] = command if position else servo_speed[r, j]
             start_goal[0, j] = servo_goal[r, j]
-            th[0, j] = theta[r, j]
-            sp[0, j] = speed[r, j]
             path[0, 0, j] = theta[r, j]
-            tau[0, j] = torque[r, j]
-            tau_speed[0, j] = torque_speed[r, j]
-            for i in range(3):
-                rot[0, j, i] = R[r, j, i]
-        load[0] = 0.0
-        done = period(th, sp, rot, start_goal, goal_speed, wanted, position, servo, dt,
-                      substeps, rk4, k, path, tau, tau_speed, load)  # fmt: skip
+        done, t, v, Rm, tq, tq_speed, most = _period_one(
+            _vec_of(theta[r]), _vec_of(speed[r]), _mat_of(R[r]), _vec_of(start_goal[0]),
+            _vec_of(goal_speed[0]), _vec_of(wanted[0]), position, servo, dt, substeps, rk4, k,
+            path,
+        )  # fmt: skip
         if done < substeps:
             handed[m] = True
             continue
+        _put_mat(rot[0], Rm)
+        for j in range(3):
+            th[0, j] = t[j]
+            sp[0, j] = v[j]
         one[0] = r
         finish(one, a, path[0], th, sp, rot, path, start_goal, goal_speed, theta, speed, R, goal,
                hold, steps, servo_goal, servo_speed, position, substeps, motion, flags, weights,
                low, high, cover, k, out[m : m + 1], handed[m : m + 1], counts)  # fmt: skip
         if not handed[m]:
             for j in range(3):
-                torque[r, j] = tau[0, j]
-                torque_speed[r, j] = tau_speed[0, j]
-            servo_load[r] = load[0]
+                torque[r, j] = tq[j]
+                torque_speed[r, j] = tq_speed[j]
+            servo_load[r] = most
 
 
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
 KERNELS = (
     *REDUCED_KERNELS,
     _within,
-    _finite_rotation,
+    _finite_mat,
     _clip_torque,
     _servo,
     _load,
+    _physics_step,
     _advance_row,
     _commit_row,
     period,
+    _period_one,
     _search,
     covered,
     _verdict,
