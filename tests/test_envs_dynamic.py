@@ -282,6 +282,8 @@ def test_a_steps_extra_info_is_the_vector_envs_row_and_a_copy() -> None:
     action = np.array([0.4, -0.2, 0.1], dtype=np.float32)
     info_v = vec.step(np.stack([action, -action]))[4]
     info = single.step(action)[4]
+    rows = np.array([0])
+    assert tuple(single.core.extra_info(0)) == tuple(single.core.extra_info(rows)) == EXTRA_INFO
     for key in EXTRA_INFO:
         np.testing.assert_array_equal(info[key], info_v[key][0], err_msg=key)
     assert info["theta_dot"].shape == (3,) and isinstance(info["servo_load"], float)

@@ -674,7 +674,13 @@ class DynamicCore(OrientCore):
         the motor torques of the last physics step ``torque`` [N m] and the speeds
         ``torque_speed`` [rad/s] they were applied at, and the largest ``servo_load``
         of the period (<= 1 inside the torque-speed envelope). Copies, never views."""
-        arrays = (self.speed, self.servo_goal, self.torque, self.torque_speed, self.servo_load)
         if isinstance(rows, np.ndarray):  # indexing by an array copies
+            arrays = (self.speed, self.servo_goal, self.torque, self.torque_speed, self.servo_load)
             return {key: array[rows] for key, array in zip(EXTRA_INFO, arrays, strict=True)}
-        return {key: array[rows].copy() for key, array in zip(EXTRA_INFO, arrays, strict=True)}
+        return {  # one row (a single env's every step): its values, copied
+            "theta_dot": self.speed[rows].copy(),
+            "servo_goal": self.servo_goal[rows].copy(),
+            "torque": self.torque[rows].copy(),
+            "torque_speed": self.torque_speed[rows].copy(),
+            "servo_load": self.servo_load[rows].copy(),
+        }
