@@ -110,7 +110,7 @@ FloatArray = npt.NDArray[np.float64]
 SEED = 20_250_228
 #: The project's target [env steps/s], batched N = 4096.
 TARGET_STEPS_PER_SECOND = 1_000_000.0
-#: The dynamic environment's targets (the issue's), judged with its fastest safety
+#: The dynamic environment's targets, judged with its fastest safety
 #: check (``cover_only``): batched env steps/s (N = 4096) and one env step [s].
 TARGET_DYNAMIC_STEPS_PER_SECOND = 200_000.0
 TARGET_DYNAMIC_SINGLE_S = 20e-6

@@ -52,7 +52,7 @@ the servos' guard's thresholds, 2-degree grid):
    again by that safe set.
 8. ``targets``: every pair planned and certified (``plan_success``); full runs only:
    with the precomputed cells, the median plan <= 1 ms and its p99 <= 10 ms on one
-   core (the issue allows a precomputed map on disk); the Agile Eye's median plan
+   core (a precomputed map on disk is allowed); the Agile Eye's median plan
    <= 50 ms.
 """
 

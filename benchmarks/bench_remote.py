@@ -37,7 +37,7 @@ that client and server do not share an interpreter lock. What is measured:
    cached from the server's run); ``backend.move(...)``, which also answers the
    state at the goal (its exact distances), beside it.
 
-Targets (the issue's): at 1 kHz with 10 readers, p99 of the answer latency <= 5 ms,
+Targets: at 1 kHz with 10 readers, p99 of the answer latency <= 5 ms,
 targets answered at >= 990 per second, and nothing lost silently (every target
 answered, every push the server sent received).
 """
@@ -89,7 +89,7 @@ from ._common import (  # noqa: E402
     with_all_pass,
 )
 
-#: The issue's figures: answer latency p99 [s] of targets at TARGET_RATE [Hz].
+#: The target: answer latency p99 [s] of targets at TARGET_RATE [Hz].
 TARGET_P99_S = 5e-3
 TARGET_RATE = 1000.0
 #: Answered targets per second at TARGET_RATE that count as sustained [Hz].

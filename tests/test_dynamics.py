@@ -35,7 +35,7 @@ TOL = {
     # "until the weld residual is below 1e-12".
     "projection": 1e-12,
     "velocity": 1e-12,  # |J v| / |v| of simulated states
-    "energy": 1e-6,  # frictionless 10 s energy drift / max kinetic energy (the issue)
+    "energy": 1e-6,  # frictionless 10 s energy drift / max kinetic energy (the target)
     "energy_balance": 1e-8,  # E - E0 - W + D over the kinetic energy scale, rk4
     "servo": 1e-12,  # fast servo law vs ServoModel.command [N m]
     "trajectory_fd": 1e-4,  # finite-difference speeds of a 1 kHz quintic [rad/s]

@@ -25,7 +25,7 @@ TOL = {
     "float32_rotation": 1e-6,  # a rotation read back from its float32 6-D form
     "overshoot_rad": 1e-9,  # an input passing its goal
     "speed_step": 1e-5,  # a change of commanded speed beyond max_acceleration * dt
-    "success": 0.95,  # the issue's bar: >= 95 % of held-out safe goals within 2 deg
+    "success": 0.95,  # the bar: >= 95 % of held-out safe goals within 2 deg
     "dynamic_success": 0.8,
     "random_success": 0.2,
 }
@@ -87,7 +87,7 @@ def test_rotations_of_float32_six_d() -> None:
 
 
 def test_scripted_policy_reaches_held_out_goals(env: Any) -> None:
-    """The issue's bar: >= 95 % of held-out safe goals held within 2 deg, with no
+    """The bar: >= 95 % of held-out safe goals held within 2 deg, with no
     unsafe stop under ``safety="terminate"``."""
     policy = ScriptedPolicy.for_env(env)
     result = evaluate_policy(env, policy, episodes=40, seed=SEED["kinematic"])
