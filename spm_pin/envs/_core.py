@@ -316,7 +316,12 @@ class OrientCore:
             arguments,
         )
         return self.kernel_result(
-            rows, out, handed, counts, lambda back: self._step_numpy(rows[back], action[back])
+            rows,
+            out,
+            handed,
+            counts,
+            lambda back: self._hand_back(rows[back], action[back]),
+            count=False,
         )
 
     def _call_step(

@@ -466,14 +466,12 @@ class DynamicCore(OrientCore):
             for future in futures:
                 future.result()
             counts = parts.sum(axis=0)
-        # The robots handed back go period by period; those whose end numpy makes are
-        # counted there (handed_rows), once.
         return self.kernel_result(
             rows,
             out,
             handed,
             counts,
-            lambda back: self._step_periods(rows[back], action[back]),
+            lambda back: self._hand_back(rows[back], action[back]),
             count=False,
         )
 

@@ -540,8 +540,7 @@ def step(
     """Whole control periods of ``rows`` with a cover, one robot after the other, in
     place: the command of the action (the servos' goal speed within the acceleration
     limit, or the torque asked for), :func:`period` of the robot alone (held in
-    floats, :func:`_period_one`), then
-    :func:`finish`; what :meth:`DynamicCore.step_rows
+    floats, :func:`_period_one`), then :func:`finish`; what :meth:`DynamicCore.step_rows
     <spm_pin.envs._dynamic.DynamicCore.step_rows>` does in numpy, the same operations
     in the same order (a robot's period does not depend on the others).
 
