@@ -299,20 +299,19 @@ class OrientCore:
 
     def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
         """Step ``rows`` with normalised actions (n, 3) in [-1, 1]: by the compiled
-        kernel where it can (a cover, numba), the rest by numpy."""
-        arguments = self.fused_arguments()
+        kernel where it can (a cover, numba; :meth:`_kernel_counts`), the robots it
+        hands back by :meth:`_hand_back`; else by :meth:`_step_plain`."""
+        arguments = self._compiled_step()
         if arguments is None or rows.size == 0:
-            return self._step_numpy(rows, action)
+            return self._step_plain(rows, action)
         n = rows.size
         out = np.empty((n, 5))
         handed = np.zeros(n, dtype=bool)
-        counts = np.zeros(2, dtype=np.int64)
-        self._call_step(
+        counts = self._kernel_counts(
             np.ascontiguousarray(rows, dtype=np.int64),
             np.ascontiguousarray(action, dtype=np.float64),
             out,
             handed,
-            counts,
             arguments,
         )
         return self.kernel_result(
@@ -323,6 +322,24 @@ class OrientCore:
             lambda back: self._hand_back(rows[back], action[back]),
             count=False,
         )
+
+    def _step_plain(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """:meth:`step_rows` without the compiled step: numpy."""
+        return self._step_numpy(rows, action)
+
+    def _kernel_counts(
+        self,
+        rows: IntArray,
+        action: FloatArray,
+        out: FloatArray,
+        handed: BoolArray,
+        arguments: tuple[Any, ...],
+    ) -> IntArray:
+        """:meth:`_call_step` of ``rows`` in one call; the cover's checks asked and
+        settled (2,)."""
+        counts = np.zeros(2, dtype=np.int64)
+        self._call_step(rows, action, out, handed, counts, arguments)
+        return counts
 
     def _call_step(
         self,

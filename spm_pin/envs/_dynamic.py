@@ -437,43 +437,38 @@ class DynamicCore(OrientCore):
             low[open_] = np.where(ok, middle, low[open_])
             high[open_] = np.where(ok, high[open_], middle)
 
-    def step_rows(self, rows: IntArray, action: FloatArray) -> StepResult:
-        """One control period of ``rows`` with normalised actions (n, 3) in [-1, 1]: with
-        a cover and numba, robot by robot in one compiled call
-        (:func:`~spm_pin.envs._dynamic_kernel.step`, chunks of rows in threads), the
-        robots it hands back by :meth:`_step_periods`; else :meth:`_step_periods`."""
-        arguments = self._compiled_step()
-        if arguments is None or rows.size == 0:
-            return self._step_periods(rows, action)
+    def _step_plain(self, rows: IntArray, action: FloatArray) -> StepResult:
+        """:meth:`step_rows` without the compiled step: :meth:`_step_periods`."""
+        return self._step_periods(rows, action)
+
+    def _kernel_counts(
+        self,
+        rows: IntArray,
+        action: FloatArray,
+        out: FloatArray,
+        handed: BoolArray,
+        arguments: tuple[Any, ...],
+    ) -> IntArray:
+        """Whole control periods of ``rows``, robot by robot, by the compiled
+        :func:`~spm_pin.envs._dynamic_kernel.step`: in contiguous chunks of robots on
+        threads (the kernel releases the GIL) where :meth:`chunks` says so; the
+        cover's checks asked and settled (2,)."""
         n = rows.size
-        out = np.empty((n, 5))
-        handed = np.zeros(n, dtype=bool)
-        ids = np.ascontiguousarray(rows, dtype=np.int64)
-        actions = np.ascontiguousarray(action, dtype=np.float64)
         chunks = self.chunks(n)
         if chunks == 1:
-            counts = np.zeros(2, dtype=np.int64)
-            self._call_step(ids, actions, out, handed, counts, arguments)
-        else:  # contiguous chunks of robots in threads (the kernel releases the GIL)
-            bounds = np.linspace(0, n, chunks + 1).astype(int).tolist()
-            parts = np.zeros((chunks, 2), dtype=np.int64)
-            futures = [
-                _pool().submit(
-                    self._call_step, ids[a:b], actions[a:b], out[a:b], handed[a:b], part, arguments
-                )
-                for part, (a, b) in zip(parts, itertools.pairwise(bounds), strict=True)
-            ]
-            for future in futures:
-                future.result()
-            counts = parts.sum(axis=0)
-        return self.kernel_result(
-            rows,
-            out,
-            handed,
-            counts,
-            lambda back: self._hand_back(rows[back], action[back]),
-            count=False,
-        )
+            return super()._kernel_counts(rows, action, out, handed, arguments)
+        bounds = np.linspace(0, n, chunks + 1).astype(int).tolist()
+        parts = np.zeros((chunks, 2), dtype=np.int64)
+        futures = [
+            _pool().submit(
+                self._call_step, rows[a:b], action[a:b], out[a:b], handed[a:b], part, arguments
+            )
+            for part, (a, b) in zip(parts, itertools.pairwise(bounds), strict=True)
+        ]
+        for future in futures:
+            future.result()
+        counts: IntArray = parts.sum(axis=0)
+        return counts
 
     def _call_step(
         self,
@@ -589,6 +584,7 @@ class DynamicCore(OrientCore):
         handed = np.zeros(n, dtype=bool)
         counts = np.zeros(2, dtype=np.int64)
         motion, flags, weights, low, high, cover = arguments[:6]
+        physics = self._physics_arguments()
         c = np.ascontiguousarray
         self._finish_kernel(
             c(rows, dtype=np.int64),
@@ -602,15 +598,15 @@ class DynamicCore(OrientCore):
             self.steps,
             self.servo_goal,
             self.goal_speed,
-            self.physics.actuation == "position",
-            int(self.substeps),
+            physics[0],  # "position" actuation
+            physics[3],  # substeps
             motion,
             flags,
             weights,
             low,
             high,
             cover,
-            self.dynamics._constants(),
+            physics[5],  # the reduced dynamics' constants
             out,
             handed,
             counts,
