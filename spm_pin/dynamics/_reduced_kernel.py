@@ -46,6 +46,7 @@ __all__ = [
     "STATUS_ROTATION",
     "STATUS_SINGULAR",
     "accelerations",
+    "flat",
     "home_rotation_of",
     "rotations",
     "step",
@@ -72,6 +73,10 @@ STATUS_SINGULAR = 2
 #: home_sign (sign of det A at home), sign_tol, singular_det, closure_tol,
 #: newton_iterations (int); armature (3,).
 Constants = tuple[Any, ...]
+#: The constants as floats and tuples (:func:`flat`, made once per kernel call): what
+#: the hot callees take, so that a loop over robots reads no array and takes no view
+#: of one (see :func:`flat` for the order).
+Flat = tuple[Any, ...]
 
 
 # ------------------------------------------------------------------ 3-vectors
@@ -140,6 +145,41 @@ def _put_mat(out: FloatArray, m: Mat) -> None:
     for i in range(3):
         for j in range(3):
             out[i, j] = m[i][j]
+
+
+def flat(k: Constants) -> Flat:
+    """The constants ``k`` as floats and tuples, in the order of :data:`Constants`
+    (u, w0, v0 and the plat_inertia as rows; frame_inv and dist_inertia as three
+    matrices; prox_moment and dist_moment as three rows; viscous and coulomb as nine
+    floats) except at 6: the proximal links' inertia plus the armature (3,); and
+    without the armature at the end."""
+    fi, di, pm, dm = k[3], k[4], k[7], k[8]
+    viscous, coulomb, prox, armature = k[11], k[12], k[6], k[21]
+    return (
+        _mat_of(k[0]),
+        _mat_of(k[1]),
+        _mat_of(k[2]),
+        (_mat_of(fi[0]), _mat_of(fi[1]), _mat_of(fi[2])),
+        (_mat_of(di[0]), _mat_of(di[1]), _mat_of(di[2])),
+        _mat_of(k[5]),
+        (prox[0] + armature[0], prox[1] + armature[1], prox[2] + armature[2]),
+        (_vec_of(pm[0]), _vec_of(pm[1]), _vec_of(pm[2])),
+        (_vec_of(dm[0]), _vec_of(dm[1]), _vec_of(dm[2])),
+        _vec_of(k[9]),
+        _vec_of(k[10]),
+        (viscous[0], viscous[1], viscous[2], viscous[3], viscous[4], viscous[5],
+         viscous[6], viscous[7], viscous[8]),
+        (coulomb[0], coulomb[1], coulomb[2], coulomb[3], coulomb[4], coulomb[5],
+         coulomb[6], coulomb[7], coulomb[8]),
+        float(k[13]),
+        float(k[14]),
+        float(k[15]),
+        float(k[16]),
+        float(k[17]),
+        float(k[18]),
+        float(k[19]),
+        int(k[20]),
+    )  # fmt: skip
 
 
 def _solve3(m: Mat, b: Vec) -> Vec:
@@ -257,12 +297,11 @@ def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int
 
 
 @_jit.inline
-def _home_rotation(w: Mat, R: Mat, k: Constants) -> tuple[bool, Mat]:
+def _home_rotation(w: Mat, R: Mat, f: Flat) -> tuple[bool, Mat]:
     """(settled, R) for the proximal axes w: Newton from R, accepted when the residual
     is within the closure tolerance and the home sign rule holds (every b_ii >
     sign_tol, det A of the sign it has at home and larger than sign_tol in size)."""
-    u, v0 = _mat_of(k[0]), _mat_of(k[2])
-    return _settle(w, R, u, v0, k[13], k[16], k[17], k[19], int(k[20]))
+    return _settle(w, R, f[0], f[2], f[13], f[16], f[17], f[19], f[20])
 
 
 def home_rotation_of(
@@ -319,10 +358,10 @@ def _leg_terms(
     ai: Vec,
     e: Vec,
     P: Vec,
-    frame_inv: FloatArray,
-    dist_inertia: FloatArray,
-    dist_moment: FloatArray,
-    prox_moment: FloatArray,
+    Fi: Mat,
+    I_d: Mat,
+    dist_moment: Vec,
+    prox_moment: Vec,
     cos_i: float,
     sin_i: float,
     grav: Vec,
@@ -343,8 +382,6 @@ def _leg_terms(
     # omega_d,i = W theta_dot, W = u_i e_i^T + w_i Psi_i^T: in its frame the axes
     # u_i, w_i are x = D^T u_i, y = D^T w_i (D^T = F_i^-T [w_i v_i a_i]^T), so
     # W^T D I_d D^T W = xx e e^T + xy (e Psi_i^T + Psi_i e^T) + yy Psi_i Psi_i^T.
-    Fi = _mat_of(frame_inv)
-    I_d = _mat_of(dist_inertia)
     x = _mat_t_vec(Fi, (_dot(wi, ui), _dot(vi, ui), _dot(ai, ui)))
     y = _mat_t_vec(Fi, (_dot(wi, wi), _dot(vi, wi), _dot(ai, wi)))
     Ix = _mat_vec(I_d, x)
@@ -360,7 +397,7 @@ def _leg_terms(
     )
     # gravity: the distal link's weight (first moment D h = [w v a] F^-1 h), and the
     # proximal link's
-    p = _mat_vec(Fi, _vec_of(dist_moment))
+    p = _mat_vec(Fi, dist_moment)
     dist_h = (
         wi[0] * p[0] + vi[0] * p[1] + ai[0] * p[2],
         wi[1] * p[0] + vi[1] * p[1] + ai[1] * p[2],
@@ -368,7 +405,7 @@ def _leg_terms(
     )
     weight = _cross(dist_h, grav)
     gu, gw = _dot(ui, weight), _dot(wi, weight)  # W^T z = e (u.z) + Psi_i (w.z)
-    prox_h = _rotate(ui, cos_i, sin_i, _vec_of(prox_moment))
+    prox_h = _rotate(ui, cos_i, sin_i, prox_moment)
     gi = -_dot(ui, _cross(prox_h, grav))
     g = (
         gi * e[0] - (gu * e[0] + gw * P[0]),
@@ -409,19 +446,14 @@ def _leg_terms(
 
 # ------------------------------------------------------------------ dynamics
 @_jit.inline
-def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias: bool) -> Any:
+def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, f: Flat, bias: bool) -> Any:
     """Every term of one state (the cos and sin of its input angles, its proximal axes
-    w), as ``ReducedDynamics._terms`` and ``_bias``: (singular, det A, M, c, g,
-    friction, J, Psi, Chi)."""
-    u, v0 = _mat_of(k[0]), _mat_of(k[2])
-    frame_inv, dist_inertia = k[3], k[4]
-    I_p = _mat_of(k[5])
-    prox, armature = k[6], k[21]
-    prox_diag = (prox[0] + armature[0], prox[1] + armature[1], prox[2] + armature[2])
-    prox_moment, dist_moment = k[7], k[8]
-    plat_moment, grav = _vec_of(k[9]), _vec_of(k[10])
-    viscous, coulomb = k[11], k[12]
-    smoothing, mode, singular_det = k[14], k[15], k[18]
+    w) but friction, as ``ReducedDynamics._terms`` and ``_bias``: (singular, det A, M,
+    c, g, J, Psi, Chi, Psi theta_dot, Chi theta_dot)."""
+    u, v0 = f[0], f[2]
+    frame_inv, dist_inertia, I_p, prox_diag = f[3], f[4], f[5], f[6]
+    prox_moment, dist_moment, plat_moment, grav = f[7], f[8], f[9], f[10]
+    singular_det = f[18]
     v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
     a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
     uxw = (_cross(u[0], w[0]), _cross(u[1], w[1]), _cross(u[2], w[2]))
@@ -433,7 +465,7 @@ def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias
     zero: Mat = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     zero3: Vec = (0.0, 0.0, 0.0)
     if not abs(det) > singular_det * scale:
-        return True, det, zero, zero3, zero3, zero3, zero, zero, zero
+        return True, det, zero, zero3, zero3, zero, zero, zero, zero3, zero3
     # J = A^-1 B: J[k][j] = cof[j][k] b_j / det
     q = (b[0] / det, b[1] / det, b[2] / det)
     J: Mat = (
@@ -532,37 +564,52 @@ def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, k: Constants, bias
         world = _mat_vec(R, (t1[0] + t2[0], t1[1] + t2[1], t1[2] + t2[2]))
         cp = _mat_t_vec(J, world)
         c = (c0 + cp[0], c1 + cp[1], c2 + cp[2])
-    friction = zero3
-    if mode > 0.0:
-        f0 = f1 = f2 = 0.0
-        for i in range(3):
-            # joints u_i, w_i, v_i of leg i: rates theta_dot_i, psi_dot_i, chi_dot_i
-            rows = (_unit(i), Psi[i], Chi[i])
-            joint_rates = (rate[i], psi_dot[i], chi_dot[i])
-            for m in range(3):
-                jr = joint_rates[m]
-                f = -viscous[3 * i + m] * jr
-                if coulomb[3 * i + m] != 0.0:  # as numpy: zero adds nothing
-                    f -= coulomb[3 * i + m] * math.tanh(jr / smoothing)
-                f0 += rows[m][0] * f
-                f1 += rows[m][1] * f
-                f2 += rows[m][2] * f
-        friction = (f0, f1, f2)
-    return False, det, M, c, g, friction, J, Psi, Chi
+    return False, det, M, c, g, J, Psi, Chi, psi_dot, chi_dot
 
 
 @_jit.inline
-def _row_acceleration(cos: Vec, sin: Vec, w: Mat, rate: Vec, tau: Vec, R: Mat, k: Constants) -> Any:
-    """(singular, det A, theta_ddot) of one state (as :func:`_row_terms` takes it)."""
-    singular, det, M, c, g, friction, _, _, _ = _row_terms(cos, sin, w, rate, R, k, True)
-    if singular:
-        return True, det, (0.0, 0.0, 0.0)
+def _friction(rate: Vec, Psi: Mat, Chi: Mat, psi_dot: Vec, chi_dot: Vec, f: Flat) -> Vec:
+    """The joints' friction torques on the inputs (zero without friction), from the
+    terms of :func:`_row_terms`."""
+    if not f[15] > 0.0:
+        return (0.0, 0.0, 0.0)
+    viscous, coulomb, smoothing = f[11], f[12], f[14]
+    f0 = f1 = f2 = 0.0
+    for i in range(3):
+        # joints u_i, w_i, v_i of leg i: rates theta_dot_i, psi_dot_i, chi_dot_i
+        rows = (_unit(i), Psi[i], Chi[i])
+        joint_rates = (rate[i], psi_dot[i], chi_dot[i])
+        for m in range(3):
+            jr = joint_rates[m]
+            q = -viscous[3 * i + m] * jr
+            if coulomb[3 * i + m] != 0.0:  # as numpy: zero adds nothing
+                q -= coulomb[3 * i + m] * math.tanh(jr / smoothing)
+            f0 += rows[m][0] * q
+            f1 += rows[m][1] * q
+            f2 += rows[m][2] * q
+    return (f0, f1, f2)
+
+
+def _solve_acceleration(M: Mat, c: Vec, g: Vec, friction: Vec, tau: Vec) -> Vec:
+    """theta_ddot = M^-1 (tau + friction - c - g)."""
     rhs = (
         tau[0] + friction[0] - c[0] - g[0],
         tau[1] + friction[1] - c[1] - g[1],
         tau[2] + friction[2] - c[2] - g[2],
     )
-    return False, det, _solve3(M, rhs)
+    return _solve3(M, rhs)
+
+
+@_jit.inline
+def _row_acceleration(cos: Vec, sin: Vec, w: Mat, rate: Vec, tau: Vec, R: Mat, f: Flat) -> Any:
+    """(singular, det A, theta_ddot) of one state (as :func:`_row_terms` takes it)."""
+    singular, det, M, c, g, _, Psi, Chi, psi_dot, chi_dot = _row_terms(
+        cos, sin, w, rate, R, f, True
+    )
+    if singular:
+        return True, det, (0.0, 0.0, 0.0)
+    friction = _friction(rate, Psi, Chi, psi_dot, chi_dot, f)
+    return False, det, _solve_acceleration(M, c, g, friction, tau)
 
 
 # ------------------------------------------------------------------ batches
@@ -607,21 +654,24 @@ def terms(
     arrays; returns the singular flags (N,) (their rows left unwritten)."""
     n = theta.shape[0]
     singular = np.zeros(n, dtype=np.bool_)
+    f = flat(k)
     for row in range(n):
         cos, sin = _trig(_vec_of(theta[row]))
-        w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
-        out = _row_terms(cos, sin, w, _vec_of(rate[row]), _mat_of(R[row]), k, bias)
+        w = _proximal(cos, sin, f[0], f[1])
+        r = _vec_of(rate[row])
+        out = _row_terms(cos, sin, w, r, _mat_of(R[row]), f, bias)
         singular[row] = out[0]
         det[row] = out[1]
         if out[0]:
             continue
+        Psi, Chi = out[6], out[7]
+        tau_f = _friction(r, Psi, Chi, out[8], out[9], f)
         _put_mat(M[row], out[2])
         for j in range(3):
             c[row, j] = out[3][j]
             g[row, j] = out[4][j]
-            friction[row, j] = out[5][j]
-        _put_mat(J[row], out[6])
-        Psi, Chi = out[7], out[8]
+            friction[row, j] = tau_f[j]
+        _put_mat(J[row], out[5])
         for i in range(3):
             for j in range(3):
                 S[row, 3 * i, j] = 1.0 if i == j else 0.0
@@ -643,11 +693,12 @@ def accelerations(
     flags (N,)."""
     n = theta.shape[0]
     singular = np.zeros(n, dtype=np.bool_)
+    f = flat(k)
     for row in range(n):
         cos, sin = _trig(_vec_of(theta[row]))
-        w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
+        w = _proximal(cos, sin, f[0], f[1])
         bad, d, acc = _row_acceleration(
-            cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), k
+            cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), f
         )
         singular[row] = bad
         det[row] = d
@@ -656,7 +707,7 @@ def accelerations(
 
 
 def _rk4_stage(
-    theta: Vec, rate: Vec, r: Vec, a: Vec, step: float, tau: Vec, R: Mat, k: Constants
+    theta: Vec, rate: Vec, r: Vec, a: Vec, step: float, tau: Vec, R: Mat, f: Flat
 ) -> Any:
     """One intermediate RK4 stage of one robot, at theta + step r with the rate
     rate + step a, its rotation warm-started from R: (status, the stage's rate, its
@@ -664,11 +715,11 @@ def _rk4_stage(
     t = (theta[0] + step * r[0], theta[1] + step * r[1], theta[2] + step * r[2])
     rs = (rate[0] + step * a[0], rate[1] + step * a[1], rate[2] + step * a[2])
     cos, sin = _trig(t)
-    w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
-    ok, Rs = _home_rotation(w, R, k)
+    w = _proximal(cos, sin, f[0], f[1])
+    ok, Rs = _home_rotation(w, R, f)
     if not ok:
         return STATUS_ROTATION, rs, rs
-    bad, _, acc = _row_acceleration(cos, sin, w, rs, tau, Rs, k)
+    bad, _, acc = _row_acceleration(cos, sin, w, rs, tau, Rs, f)
     if bad:
         return STATUS_SINGULAR, rs, acc
     return STATUS_OK, rs, acc
@@ -685,12 +736,12 @@ def _row_step(
     R: Mat,
     h: float,
     rk4: bool,
-    k: Constants,
+    f: Flat,
 ) -> Any:
     """One time step of one robot from a settled rotation R (cos, sin: of theta; w:
     its proximal axes): (status, theta', rate', theta_ddot)."""
     zero = (0.0, 0.0, 0.0)
-    bad, _, a1 = _row_acceleration(cos, sin, w, rate, tau, R, k)
+    bad, _, a1 = _row_acceleration(cos, sin, w, rate, tau, R, f)
     if bad:
         return STATUS_SINGULAR, zero, zero, zero
     if not rk4:
@@ -698,13 +749,13 @@ def _row_step(
         t = (theta[0] + h * r[0], theta[1] + h * r[1], theta[2] + h * r[2])
         return STATUS_OK, t, r, a1
     half = 0.5 * h
-    status, r2, a2 = _rk4_stage(theta, rate, rate, a1, half, tau, R, k)
+    status, r2, a2 = _rk4_stage(theta, rate, rate, a1, half, tau, R, f)
     if status != STATUS_OK:
         return status, zero, zero, zero
-    status, r3, a3 = _rk4_stage(theta, rate, r2, a2, half, tau, R, k)
+    status, r3, a3 = _rk4_stage(theta, rate, r2, a2, half, tau, R, f)
     if status != STATUS_OK:
         return status, zero, zero, zero
-    status, r4, a4 = _rk4_stage(theta, rate, r3, a3, h, tau, R, k)
+    status, r4, a4 = _rk4_stage(theta, rate, r3, a3, h, tau, R, f)
     if status != STATUS_OK:
         return status, zero, zero, zero
     sixth = h / 6.0
@@ -740,15 +791,16 @@ def step(
     returns its status (:data:`STATUS_ROTATION` or :data:`STATUS_SINGULAR`): the
     caller takes the Python path for the whole batch. :data:`STATUS_OK` otherwise."""
     n = theta.shape[0]
+    f = flat(k)
     for row in range(n):
         th = _vec_of(theta[row])
         cos, sin = _trig(th)
-        w = _proximal(cos, sin, _mat_of(k[0]), _mat_of(k[1]))
-        ok, R = _home_rotation(w, _mat_of(reference[row]), k)
+        w = _proximal(cos, sin, f[0], f[1])
+        ok, R = _home_rotation(w, _mat_of(reference[row]), f)
         if not ok:
             return STATUS_ROTATION
         status, t, r, acc = _row_step(
-            th, cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, k
+            th, cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, f
         )
         if status != STATUS_OK:
             return int(status)
@@ -772,6 +824,7 @@ KERNELS = (
     _vec_of,
     _mat_of,
     _put_mat,
+    flat,
     _solve3,
     _unit,
     _scale,
@@ -787,6 +840,8 @@ KERNELS = (
     home_rotation_of,
     _home_rotation,
     _row_terms,
+    _friction,
+    _solve_acceleration,
     _row_acceleration,
     rotations,
     terms,

@@ -55,6 +55,7 @@ from ..dynamics._reduced_kernel import (
 from ..dynamics._reduced_kernel import (
     STATUS_OK,
     Constants,
+    Flat,
     Mat,
     _home_rotation,
     _mat_of,
@@ -63,6 +64,7 @@ from ..dynamics._reduced_kernel import (
     _row_step,
     _trig,
     _vec_of,
+    flat,
     home_rotation_of,
 )
 from ._kinematic_kernel import (
@@ -159,9 +161,7 @@ def _physics_step(
     servo: Servo,
     dt: float,
     rk4: bool,
-    k: Constants,
-    u: Mat,
-    w0: Mat,
+    f: Flat,
 ) -> tuple[bool, Vec, Vec, Mat, Vec]:
     """One physics step of one robot at input angles th, speeds sp, warm start R:
     (taken, th', sp', the rotation at th, the torque); not taken where the numpy loop
@@ -188,11 +188,11 @@ def _physics_step(
     ):
         return False, th, sp, R, tau
     cos, sin = _trig(th)
-    w = _proximal(cos, sin, u, w0)
-    settled, rotation = _home_rotation(w, R, k)
+    w = _proximal(cos, sin, f[0], f[1])
+    settled, rotation = _home_rotation(w, R, f)
     if not settled:
         return False, th, sp, R, tau
-    status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, k)
+    status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, f)
     if status != STATUS_OK:
         return False, th, sp, R, tau
     return True, t, r, rotation, tau
@@ -212,9 +212,7 @@ def _advance_row(
     servo: Servo,
     dt: float,
     rk4: bool,
-    k: Constants,
-    u: Mat,
-    w0: Mat,
+    f: Flat,
     theta_next: FloatArray,
     speed_next: FloatArray,
     R_next: FloatArray,
@@ -229,7 +227,7 @@ def _advance_row(
         drive = (zero, zero, _vec_of(wanted[row]))
     taken, t, r, rotation, tau = _physics_step(
         _vec_of(theta[row]), _vec_of(speed[row]), _mat_of(R[row]), drive[0], drive[1],
-        drive[2], offset, position, servo, dt, rk4, k, u, w0,
+        drive[2], offset, position, servo, dt, rk4, f,
     )  # fmt: skip
     if not taken:
         return False
@@ -323,13 +321,13 @@ def period(
     speed_next = np.empty((n, 3))
     R_next = np.empty((n, 3, 3))
     tau_next = np.empty((n, 3))
-    u, w0 = _mat_of(k[0]), _mat_of(k[1])
+    f = flat(k)
     for step in range(substeps):
         offset = step * dt
         for row in range(n):
             if not _advance_row(
                 row, offset, theta, speed, R, goal_start, goal_speed, wanted, position,
-                servo, dt, rk4, k, u, w0, theta_next, speed_next, R_next, tau_next,
+                servo, dt, rk4, f, theta_next, speed_next, R_next, tau_next,
             ):  # fmt: skip
                 return step
         for row in range(n):
@@ -352,7 +350,7 @@ def _period_one(
     dt: float,
     substeps: int,
     rk4: bool,
-    k: Constants,
+    f: Flat,
     path: FloatArray,
 ) -> tuple[int, Vec, Vec, Mat, Vec, Vec, float]:
     """:func:`period` of one robot, its state held in floats rather than arrays: (the
@@ -360,14 +358,14 @@ def _period_one(
     applied at, the largest servo load); the input angles after each step into
     ``path`` (substeps + 1, 1, 3) from row 1 on. The same operations as
     :func:`period`'s; the state returned is meaningful only when every step was
-    completed."""
-    u, w0 = _mat_of(k[0]), _mat_of(k[1])
+    completed (``f``: the constants as :func:`~spm_pin.dynamics._reduced_kernel.flat`
+    gives them)."""
     torque = torque_speed = (0.0, 0.0, 0.0)
     load = 0.0
     for step in range(substeps):
         taken, t, r, rotation, tau = _physics_step(
             theta, speed, R, goal_start, goal_speed, wanted, step * dt, position, servo,
-            dt, rk4, k, u, w0,
+            dt, rk4, f,
         )  # fmt: skip
         if not taken:
             return step, theta, speed, R, torque, torque_speed, load
@@ -569,6 +567,7 @@ def step(
     goal_speed = np.empty((1, 3))
     wanted = np.empty((1, 3))
     path = np.empty((substeps + 1, 1, 3))
+    f = flat(k)
     for m in range(rows.shape[0]):
         r = rows[m]
         for j in range(3):
@@ -583,7 +582,7 @@ def step(
             path[0, 0, j] = theta[r, j]
         done, t, v, Rm, tq, tq_speed, most = _period_one(
             _vec_of(theta[r]), _vec_of(speed[r]), _mat_of(R[r]), _vec_of(start_goal[0]),
-            _vec_of(goal_speed[0]), _vec_of(wanted[0]), position, servo, dt, substeps, rk4, k,
+            _vec_of(goal_speed[0]), _vec_of(wanted[0]), position, servo, dt, substeps, rk4, f,
             path,
         )  # fmt: skip
         if done < substeps:
