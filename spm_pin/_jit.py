@@ -18,6 +18,14 @@ threads may run it on disjoint rows at once; :func:`inline` marks the few callee
 hot loop should have inlined. Without numba, or with the environment variable
 ``SPM_PIN_JIT=0``, it gives the Python functions: same results, slower.
 
+``kernels(..., lanes=True)`` compiles a second family of twins for loops over robots
+that LLVM turns into vector instructions (one robot per lane): numpy's error model (a
+float division by zero gives inf or NaN instead of raising, so no exception branch
+stops the vectoriser; the operations, and so the bits, are otherwise the same) and
+every function but the :func:`nogil` entry points inlined into its callers (LLVM alone
+leaves some callees of a long loop body as calls, which no vector loop may hold). A
+function it does not list is called as the plain family's twin, compiled before.
+
 The machine code is cached on disk (numba's cache, beside the sources) under each
 kernel's name and a digest of its code, of the kernels it calls and of the constants
 it names (:func:`_digest`): numba stamps a cache with the kernel's own file alone, so
@@ -40,13 +48,14 @@ __all__ = ["ENV_VARIABLE", "available", "inline", "kernels", "nogil", "ready"]
 ENV_VARIABLE = "SPM_PIN_JIT"
 
 _lock = threading.Lock()
-_cache: dict[tuple[Callable[..., Any], ...], dict[str, Callable[..., Any]]] = {}
-#: Compiled twins by the id of their Python function (kept alive by ``_originals``).
-_compiled: dict[int, Callable[..., Any]] = {}
+_cache: dict[tuple[tuple[Callable[..., Any], ...], bool], dict[str, Callable[..., Any]]] = {}
+#: Compiled twins by the id of their Python function and their family (``lanes``),
+#: the functions kept alive by ``_originals``.
+_compiled: dict[tuple[int, bool], Callable[..., Any]] = {}
 _originals: list[Callable[..., Any]] = []
-#: The digest of each compiled function (by the id of its Python function): see
-#: :func:`_digest`.
-_digests: dict[int, str] = {}
+#: The digest of each compiled function (by the id of its Python function and its
+#: family): see :func:`_digest`.
+_digests: dict[tuple[int, bool], str] = {}
 #: The attributes :func:`inline` and :func:`nogil` set on a function.
 _INLINE = "_spm_pin_jit_inline"
 _NOGIL = "_spm_pin_jit_nogil"
@@ -93,19 +102,23 @@ def available() -> bool:
     return _numba() is not None
 
 
-def kernels(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., Any]]:
+def kernels(
+    functions: Sequence[Callable[..., Any]], *, lanes: bool = False
+) -> dict[str, Callable[..., Any]]:
     """The functions compiled by numba (``njit``, cached on disk), by name.
 
     Args:
         functions: Plain Python functions, each after the functions it calls (a
             compiled function calls the compiled twins of the functions compiled
-            before it, in this call or an earlier one; each is compiled once).
+            before it, in this call or an earlier one, of its family; each is
+            compiled once per family).
+        lanes: The family for vectorised loops over robots (see the module).
 
     Returns:
         Name -> compiled function, or name -> the function itself where numba is
         not available (see :func:`available`). Compiled on first use of each.
     """
-    key = tuple(functions)
+    key = (tuple(functions), lanes)
     with _lock:
         found = _cache.get(key)
         if found is not None:
@@ -116,10 +129,10 @@ def kernels(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., 
             if numba is None:
                 out[function.__name__] = function
                 continue
-            compiled = _compiled.get(id(function))
+            compiled = _compiled.get((id(function), lanes))
             if compiled is None:
-                compiled = _compile(numba, function)
-                _compiled[id(function)] = compiled
+                compiled = _compile(numba, function, lanes)
+                _compiled[(id(function), lanes)] = compiled
                 _originals.append(function)
             out[function.__name__] = compiled
         _cache[key] = out
@@ -158,11 +171,11 @@ def _value_text(value: Any) -> str | None:
     return None
 
 
-def _digest(function: Callable[..., Any]) -> str:
-    """A digest of what ``function`` compiles to: its code, its :func:`inline` and
-    :func:`nogil` marks, the digests of the compiled functions it calls and the
-    values of the numbers, strings, arrays and tuples of its module that it names
-    (numba freezes them into the machine code).
+def _digest(function: Callable[..., Any], lanes: bool) -> str:
+    """A digest of what ``function`` compiles to in its family (``lanes``): its code,
+    its :func:`inline` and :func:`nogil` marks, the family, the digests of the
+    compiled functions it calls and the values of the numbers, strings, arrays and
+    tuples of its module that it names (numba freezes them into the machine code).
 
     numba's cache on disk is stamped with the source file of each function alone:
     a caller compiled from one file keeps the machine code of its callees in
@@ -176,6 +189,7 @@ def _digest(function: Callable[..., Any]) -> str:
         function.__qualname__,
         repr(getattr(function, _INLINE, False)),
         repr(getattr(function, _NOGIL, False)),
+        f"lanes={lanes}",
         repr(function.__defaults__),
         *_code_text(code),
     ]
@@ -188,7 +202,7 @@ def _digest(function: Callable[..., Any]) -> str:
         if name not in namespace:
             continue
         value = namespace[name]
-        callee = _digests.get(id(value))
+        callee = _digests.get((id(value), lanes)) or _digests.get((id(value), False))
         if callee is not None:
             parts.append(f"{name}={callee}")
         else:
@@ -198,12 +212,23 @@ def _digest(function: Callable[..., Any]) -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
-def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
-    """A numba twin of ``function``: a clone whose globals name the compiled twins of
-    the functions compiled before it (by identity), so the original stays Python.
-    Its cache on disk is kept under its name and :func:`_digest`."""
+def _twin(value: Any, lanes: bool) -> Any:
+    """The compiled twin of ``value`` in the family ``lanes``; in the ``lanes`` family,
+    where it has none, the plain family's (a function called once per robot, outside
+    the vectorised loops, need not be compiled again); else ``value`` itself."""
+    twin = _compiled.get((id(value), lanes))
+    if twin is None and lanes:
+        twin = _compiled.get((id(value), False))
+    return value if twin is None else twin
+
+
+def _compile(numba: Any, function: Callable[..., Any], lanes: bool) -> Callable[..., Any]:
+    """A numba twin of ``function`` in its family (``lanes``): a clone whose globals
+    name the compiled twins of the functions compiled before it (by identity, in the
+    same family), so the original stays Python. Its cache on disk is kept under its
+    name and :func:`_digest`."""
     namespace = {
-        name: _compiled.get(id(value), value) if callable(value) else value
+        name: _twin(value, lanes) if callable(value) else value
         for name, value in function.__globals__.items()
     }
     clone = types.FunctionType(
@@ -213,19 +238,26 @@ def _compile(numba: Any, function: Callable[..., Any]) -> Callable[..., Any]:
         function.__defaults__,
         function.__closure__,
     )
-    digest = _digest(function)
-    _digests[id(function)] = digest
+    digest = _digest(function, lanes)
+    _digests[(id(function), lanes)] = digest
     clone.__qualname__ = f"{function.__qualname__}-{digest}"
     clone.__module__ = function.__module__
     with warnings.catch_warnings():  # a read-only install cannot cache: fine
         warnings.simplefilter("ignore", numba.NumbaWarning)
-        how = "always" if getattr(function, _INLINE, False) else "never"
         free = bool(getattr(function, _NOGIL, False))
-        compiled: Callable[..., Any] = numba.njit(cache=True, nogil=free, inline=how)(clone)
+        inlined = getattr(function, _INLINE, False) or (lanes and not free)
+        compiled: Callable[..., Any] = numba.njit(
+            cache=True,
+            nogil=free,
+            inline="always" if inlined else "never",
+            error_model="numpy" if lanes else "python",
+        )(clone)
     return compiled
 
 
-def ready(functions: Sequence[Callable[..., Any]]) -> dict[str, Callable[..., Any]] | None:
-    """What :func:`kernels` gave for these functions, if it was called in this
-    process; else None (nothing is compiled or imported here)."""
-    return _cache.get(tuple(functions))
+def ready(
+    functions: Sequence[Callable[..., Any]], *, lanes: bool = False
+) -> dict[str, Callable[..., Any]] | None:
+    """What :func:`kernels` gave for these functions (and family), if it was called
+    in this process; else None (nothing is compiled or imported here)."""
+    return _cache.get((tuple(functions), lanes))

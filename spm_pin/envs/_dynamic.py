@@ -45,7 +45,7 @@ import numpy as np
 from .. import _jit
 from ..dynamics import XM540_W150, ReducedDynamics, ServoModel
 from ..errors import InputError, SPMError
-from . import _dynamic_kernel
+from . import _block_kernel, _dynamic_kernel
 from ._core import BoolArray, FloatArray, IntArray, OrientCore, StepResult
 from .settings import OrientSettings, _choice, _number
 
@@ -60,6 +60,11 @@ EXTRA_INFO = ("theta_dot", "servo_goal", "torque", "torque_speed", "servo_load")
 #: Fewest rows in a chunk of a period shared among threads (below, handing the work
 #: to a thread costs more than it saves).
 THREADED_ROWS = 256
+#: Fewest robots the compiled step takes in vectorised blocks
+#: (:mod:`~spm_pin.envs._block_kernel`); fewer go robot after robot (a block of
+#: :data:`~spm_pin.envs._block_kernel.BLOCK` lanes costs about what four robots do
+#: one after the other).
+BLOCK_ROWS = 4
 
 _pool_lock = threading.Lock()
 _the_pool: concurrent.futures.ThreadPoolExecutor | None = None
@@ -229,6 +234,11 @@ class DynamicCore(OrientCore):
         self._fused_kernel: Any = None
         self._finish_kernel: Any = None
         self._step_kernel: Any = None
+        self._block_kernel: Any = None
+        #: Whether the compiled step takes :data:`BLOCK_ROWS` robots or more in
+        #: vectorised blocks (:mod:`~spm_pin.envs._block_kernel`; the same bits as
+        #: robot after robot, which False asks for).
+        self.blocks = True
         self._physics_args: tuple[Any, ...] | None = None
 
     @property
@@ -470,6 +480,17 @@ class DynamicCore(OrientCore):
         counts: IntArray = parts.sum(axis=0)
         return counts
 
+    def _in_blocks(self, n: int) -> bool:
+        """Whether the compiled step takes ``n`` robots in blocks: :attr:`blocks`, at
+        least :data:`BLOCK_ROWS` robots, semi-implicit Euler and no joint friction
+        (what :func:`~spm_pin.envs._block_kernel.step` is written for)."""
+        return (
+            self.blocks
+            and n >= BLOCK_ROWS
+            and self.physics.integrator == "euler"
+            and self.dynamics.friction is None
+        )
+
     def _call_step(
         self,
         rows: IntArray,
@@ -479,11 +500,20 @@ class DynamicCore(OrientCore):
         counts: IntArray,
         arguments: tuple[Any, ...],
     ) -> None:
-        """The compiled :func:`~spm_pin.envs._dynamic_kernel.step` of ``rows``."""
-        if self._step_kernel is None:
-            self._step_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["step"]
+        """The compiled step of ``rows``: :func:`~spm_pin.envs._block_kernel.step`
+        (robots in blocks, vectorised) where :meth:`_in_blocks`, else
+        :func:`~spm_pin.envs._dynamic_kernel.step` (the same bits)."""
+        if self._in_blocks(rows.size):
+            if self._block_kernel is None:
+                _jit.kernels(_dynamic_kernel.KERNELS)  # the plain twins it calls
+                self._block_kernel = _jit.kernels(_block_kernel.KERNELS, lanes=True)["step"]
+            kernel = self._block_kernel
+        else:
+            if self._step_kernel is None:
+                self._step_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["step"]
+            kernel = self._step_kernel
         motion, flags, weights, low, high, cover = arguments[:6]
-        self._step_kernel(
+        kernel(
             rows,
             action,
             self.theta,

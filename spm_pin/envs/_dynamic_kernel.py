@@ -56,17 +56,14 @@ from ..dynamics._reduced_kernel import (
     STATUS_OK,
     Constants,
     Flat,
-    Mat,
     _home_rotation,
-    _mat_of,
     _proximal,
-    _put_mat,
     _row_step,
     _trig,
-    _vec_of,
     flat,
     home_rotation_of,
 )
+from ..dynamics._tuple_kernel import Mat, _mat_of, _put_mat, _vec_of
 from ._kinematic_kernel import (
     CHECK,
     SAFE,

@@ -37,7 +37,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..dynamics._reduced_kernel import KERNELS as REDUCED_KERNELS
-from ..dynamics._reduced_kernel import Mat, Vec, home_rotation_of
+from ..dynamics._reduced_kernel import home_rotation_of
+from ..dynamics._tuple_kernel import Mat, Vec
 
 __all__ = ["CHECK", "KERNELS", "SAFE", "UNSAFE", "covered", "covered_rows", "step"]
 
