@@ -314,3 +314,44 @@ def test_the_cache_on_disk_follows_callees_in_other_files(tmp_path: os.PathLike[
     assert run(2.0, 2.0)[0] == 6.0  # the callee changed
     assert run(2.0, 3.0)[0] == 9.0  # a constant the caller names changed
     assert run(2.0, 3.0) == (9.0, 1)
+
+
+def _quotient(a: float, b: float) -> float:
+    """a / b."""
+    return a / b
+
+
+def _half_quotient(a: float, b: float) -> float:
+    """a / (2 b), through :func:`_quotient`."""
+    return 0.5 * _quotient(a, b)
+
+
+def _divide(a: float, b: float) -> float:
+    """a / b (compiled in the plain family only)."""
+    return a / b
+
+
+def _half_divided(a: float, b: float) -> float:
+    """a / (2 b), through :func:`_divide`."""
+    return 0.5 * _divide(a, b)
+
+
+def test_the_lanes_family_divides_as_numpy_and_falls_back_to_plain_twins() -> None:
+    """``lanes=True``: the same bits, a division by zero gives inf (numpy's error
+    model, no exception branch) in the function and its inlined callees; a callee the
+    family does not list is the plain twin, which raises as Python does."""
+    plain = _jit.kernels((_quotient, _half_quotient))
+    lanes = _jit.kernels((_quotient, _half_quotient), lanes=True)
+    assert lanes["_quotient"] is not plain["_quotient"]
+    assert _jit.ready((_quotient, _half_quotient), lanes=True) is lanes
+    for a, b in ((1.0, 3.0), (-2.5, 7.1), (1e-300, 3e10)):
+        assert lanes["_half_quotient"](a, b) == plain["_half_quotient"](a, b) == 0.5 * (a / b)
+    with pytest.raises(ZeroDivisionError):
+        plain["_half_quotient"](1.0, 0.0)
+    assert lanes["_quotient"](1.0, 0.0) == math.inf
+    assert lanes["_half_quotient"](-1.0, 0.0) == -math.inf
+    _jit.kernels((_divide,))
+    mixed = _jit.kernels((_half_divided,), lanes=True)
+    assert mixed["_half_divided"](1.0, 4.0) == 0.125
+    with pytest.raises(ZeroDivisionError):
+        mixed["_half_divided"](1.0, 0.0)

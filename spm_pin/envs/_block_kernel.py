@@ -44,6 +44,7 @@ import numpy.typing as npt
 
 from .. import _jit
 from ..dynamics._reduced_kernel import (
+    Constants,
     Flat,
     _cofactors,
     _proximal,
@@ -339,7 +340,7 @@ def step(
     dt: float,
     substeps: int,
     rk4: bool,
-    k: Any,
+    k: Constants,
     motion: FloatArray,
     flags: IntArray,
     weights: FloatArray,
