@@ -17,10 +17,13 @@ the rows of the batch:
   settled there take the Python path).
 
 The constants (:data:`Constants`, built by ``ReducedDynamics``) travel as one tuple
-of arrays and floats; the callees that take it on the hot path are inlined into the
-compiled callers (:func:`spm_pin._jit.inline`), since passing the arrays costs more
-than their arithmetic. Per state, cos and sin of the input angles and the proximal
-axes are computed once and shared by the rotation, the terms and gravity. The mass
+of arrays and floats; each kernel turns them once into floats and tuples
+(:func:`flat`), which the callees on the hot path take, inlined into the compiled
+callers (:func:`spm_pin._jit.inline`): a loop over robots then reads no array of
+constants (the vectorised loops of :mod:`spm_pin.envs._block_kernel` need that). The
+3-vector algebra is :mod:`spm_pin.dynamics._tuple_kernel`. Per state, cos and sin of
+the input angles and the proximal axes are computed once and shared by the rotation,
+the terms and gravity. The mass
 and bias terms of a distal link use its two axes in its own frame (x = D^T u_i,
 y = D^T w_i) rather than its whole rotation D: W^T D I D^T W is a sum of three
 scalars times outer products of e_i and Psi_i.
