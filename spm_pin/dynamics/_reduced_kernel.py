@@ -183,38 +183,68 @@ def _cofactors(a: Mat) -> Mat:
     return (_cross(a[1], a[2]), _cross(a[2], a[0]), _cross(a[0], a[1]))
 
 
+def _closure(R: Mat, w: Mat, v0: Mat, cos_a2: float) -> tuple[Mat, Vec, float]:
+    """(v, r, residual) of the rotation R: the distal axes v_i = R v_i0, the closures
+    r_i = w_i . v_i - cos a2 and max |r_i| (NaN when an r_i is NaN)."""
+    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+    r = (_dot(w[0], v[0]) - cos_a2, _dot(w[1], v[1]) - cos_a2, _dot(w[2], v[2]) - cos_a2)
+    residual = max(abs(r[0]), abs(r[1]), abs(r[2]))
+    if math.isnan(r[0]) or math.isnan(r[1]) or math.isnan(r[2]):
+        residual = math.nan
+    return v, r, residual
+
+
+def _newton_step(w: Mat, v: Mat, r: Vec) -> tuple[Vec, float]:
+    """(axis, angle) of Newton's turn of the platform from the closures r: delta =
+    A^-1 r with the rows a_i = w_i x v_i (|det A| at least 1e-300)."""
+    a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
+    cof = _cofactors(a)
+    det = _dot(a[0], cof[0])
+    if not abs(det) > 1e-300:
+        det = 1e-300
+    delta = (
+        (r[0] * cof[0][0] + r[1] * cof[1][0] + r[2] * cof[2][0]) / det,
+        (r[0] * cof[0][1] + r[1] * cof[1][1] + r[2] * cof[2][1]) / det,
+        (r[0] * cof[0][2] + r[1] * cof[1][2] + r[2] * cof[2][2]) / det,
+    )
+    angle = math.sqrt(_dot(delta, delta))
+    safe = angle if angle > 0.0 else 1.0
+    return (delta[0] / safe, delta[1] / safe, delta[2] / safe), angle
+
+
+def _turned(R: Mat, axis: Vec, c: float, s: float) -> Mat:
+    """R with each column turned about the axis by the angle of cos c and sin s."""
+    k0 = _rotate(axis, c, s, (R[0][0], R[1][0], R[2][0]))
+    k1 = _rotate(axis, c, s, (R[0][1], R[1][1], R[2][1]))
+    k2 = _rotate(axis, c, s, (R[0][2], R[1][2], R[2][2]))
+    return ((k0[0], k1[0], k2[0]), (k0[1], k1[1], k2[1]), (k0[2], k1[2], k2[2]))
+
+
 def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int) -> Any:
     """The warm-started Newton of ``ReducedDynamics._rotation`` on one row:
     (R, the residual max |w_i . R v_i0 - cos a2| of the last iterate checked)."""
     residual = math.inf
     for _ in range(iterations):
-        v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
-        r = (_dot(w[0], v[0]) - cos_a2, _dot(w[1], v[1]) - cos_a2, _dot(w[2], v[2]) - cos_a2)
-        residual = max(abs(r[0]), abs(r[1]), abs(r[2]))
-        if math.isnan(r[0]) or math.isnan(r[1]) or math.isnan(r[2]):
-            residual = math.nan
+        v, r, residual = _closure(R, w, v0, cos_a2)
         if residual <= stop:
             break
-        a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
-        cof = _cofactors(a)
-        det = _dot(a[0], cof[0])
-        if not abs(det) > 1e-300:
-            det = 1e-300
-        delta = (
-            (r[0] * cof[0][0] + r[1] * cof[1][0] + r[2] * cof[2][0]) / det,
-            (r[0] * cof[0][1] + r[1] * cof[1][1] + r[2] * cof[2][1]) / det,
-            (r[0] * cof[0][2] + r[1] * cof[1][2] + r[2] * cof[2][2]) / det,
-        )
-        angle = math.sqrt(_dot(delta, delta))
-        safe = angle if angle > 0.0 else 1.0
-        axis = (delta[0] / safe, delta[1] / safe, delta[2] / safe)
-        c, s = math.cos(angle), math.sin(angle)
-        # turn each column of R about the axis
-        k0 = _rotate(axis, c, s, (R[0][0], R[1][0], R[2][0]))
-        k1 = _rotate(axis, c, s, (R[0][1], R[1][1], R[2][1]))
-        k2 = _rotate(axis, c, s, (R[0][2], R[1][2], R[2][2]))
-        R = ((k0[0], k1[0], k2[0]), (k0[1], k1[1], k2[1]), (k0[2], k1[2], k2[2]))
+        axis, angle = _newton_step(w, v, r)
+        R = _turned(R, axis, math.cos(angle), math.sin(angle))
     return R, residual
+
+
+def _home_rule(R: Mat, w: Mat, u: Mat, v0: Mat, home_sign: float, sign_tol: float) -> bool:
+    """The home sign rule: every b_ii = (u_i x w_i) . R v_i0 > sign_tol, and det A of
+    the sign it has at home (``home_sign``) and larger than sign_tol in size."""
+    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+    b0 = _dot(_cross(u[0], w[0]), v[0])
+    b1 = _dot(_cross(u[1], w[1]), v[1])
+    b2 = _dot(_cross(u[2], w[2]), v[2])
+    a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
+    det_a = _dot(a[0], _cross(a[1], a[2]))
+    same_sign = (det_a > 0.0 and home_sign > 0.0) or (det_a < 0.0 and home_sign < 0.0)
+    home = b0 > sign_tol and b1 > sign_tol and b2 > sign_tol and same_sign
+    return home and abs(det_a) > sign_tol
 
 
 @_jit.inline
@@ -258,15 +288,7 @@ def _settle(
 ) -> tuple[bool, Mat]:
     """:func:`home_rotation_of` from the proximal axes w."""
     R, residual = _newton(R, w, v0, cos_a2, 0.1 * tol, int(iterations))
-    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
-    b0 = _dot(_cross(u[0], w[0]), v[0])
-    b1 = _dot(_cross(u[1], w[1]), v[1])
-    b2 = _dot(_cross(u[2], w[2]), v[2])
-    a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
-    det_a = _dot(a[0], _cross(a[1], a[2]))
-    same_sign = (det_a > 0.0 and home_sign > 0.0) or (det_a < 0.0 and home_sign < 0.0)
-    home = b0 > sign_tol and b1 > sign_tol and b2 > sign_tol and same_sign
-    home = home and abs(det_a) > sign_tol
+    home = _home_rule(R, w, u, v0, home_sign, sign_tol)
     ok = math.isfinite(residual) and residual <= tol and home
     return ok, R
 
@@ -744,7 +766,11 @@ KERNELS = (
     _trig,
     _proximal,
     _cofactors,
+    _closure,
+    _newton_step,
+    _turned,
     _newton,
+    _home_rule,
     _settle,
     home_rotation_of,
     _home_rotation,

@@ -46,13 +46,16 @@ from .. import _jit
 from ..dynamics._reduced_kernel import (
     Constants,
     Flat,
-    _cofactors,
+    _closure,
+    _home_rule,
+    _newton_step,
     _proximal,
     _row_terms,
     _solve_acceleration,
+    _turned,
     flat,
 )
-from ..dynamics._tuple_kernel import Mat, _cross, _dot, _mat_of, _mat_vec, _put_mat, _rotate
+from ..dynamics._tuple_kernel import Mat, _mat_of, _put_mat
 from ._dynamic_kernel import (
     _ANGLE_BOUND,
     _SPEED_BOUND,
@@ -186,30 +189,15 @@ def _newton_pass(S: FloatArray, cos_a2: float, stop: float, v0: Mat) -> int:
     on, the turn's axis and angle. Returns how many go on."""
     going = 0
     for i in range(BLOCK):
-        R, w = _ldm(S, _RR, i), _ldm(S, _WW, i)
-        v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
-        r = (_dot(w[0], v[0]) - cos_a2, _dot(w[1], v[1]) - cos_a2, _dot(w[2], v[2]) - cos_a2)
-        residual = max(abs(r[0]), abs(r[1]), abs(r[2]))
-        if math.isnan(r[0]) or math.isnan(r[1]) or math.isnan(r[2]):
-            residual = math.nan
+        w = _ldm(S, _WW, i)
+        v, r, residual = _closure(_ldm(S, _RR, i), w, v0, cos_a2)
         turning = _ld(S, _ACT, i) > 0.5
         _st(S, _RES, i, residual if turning else _ld(S, _RES, i))
         turning = turning and not residual <= stop
         _st(S, _ACT, i, 1.0 if turning else 0.0)
         going += 1 if turning else 0
-        a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
-        cof = _cofactors(a)
-        det = _dot(a[0], cof[0])
-        if not abs(det) > 1e-300:
-            det = 1e-300
-        delta = (
-            (r[0] * cof[0][0] + r[1] * cof[1][0] + r[2] * cof[2][0]) / det,
-            (r[0] * cof[0][1] + r[1] * cof[1][1] + r[2] * cof[2][1]) / det,
-            (r[0] * cof[0][2] + r[1] * cof[1][2] + r[2] * cof[2][2]) / det,
-        )
-        angle = math.sqrt(_dot(delta, delta))
-        safe = angle if angle > 0.0 else 1.0
-        _st3(S, _AX, i, (delta[0] / safe, delta[1] / safe, delta[2] / safe))
+        axis, angle = _newton_step(w, v, r)
+        _st3(S, _AX, i, axis)
         _st(S, _ANG, i, angle if turning else 0.0)
     return going
 
@@ -217,20 +205,17 @@ def _newton_pass(S: FloatArray, cos_a2: float, stop: float, v0: Mat) -> int:
 def _turn_pass(S: FloatArray) -> None:
     """Turn the rotation of each robot still turning about its axis (each column)."""
     for i in range(BLOCK):
-        axis, c, s = _ld3(S, _AX, i), _ld(S, _CN, i), _ld(S, _SN, i)
         R = _ldm(S, _RR, i)
-        k0 = _rotate(axis, c, s, (R[0][0], R[1][0], R[2][0]))
-        k1 = _rotate(axis, c, s, (R[0][1], R[1][1], R[2][1]))
-        k2 = _rotate(axis, c, s, (R[0][2], R[1][2], R[2][2]))
+        turned = _turned(R, _ld3(S, _AX, i), _ld(S, _CN, i), _ld(S, _SN, i))
         if _ld(S, _ACT, i) > 0.5:
-            R = ((k0[0], k1[0], k2[0]), (k0[1], k1[1], k2[1]), (k0[2], k1[2], k2[2]))
+            R = turned
         _stm(S, _RR, i, R)
 
 
 def _euler_pass(
     S: FloatArray, P: FloatArray, step: int, dt: float, servo: Servo, full: float, f: Flat
 ) -> None:
-    """The home sign rule of :func:`~spm_pin.dynamics._reduced_kernel._settle`, the
+    """The home sign rule (:func:`~spm_pin.dynamics._reduced_kernel._home_rule`), the
     accelerations (no friction), the semi-implicit Euler step and the records; a robot
     whose step is not taken keeps its state and has its steps done set."""
     u, v0 = f[0], f[2]
@@ -239,15 +224,7 @@ def _euler_pass(
     base = (step + 1) * 3 * BLOCK
     for i in range(BLOCK):
         R, w = _ldm(S, _RR, i), _ldm(S, _WW, i)
-        v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
-        b0 = _dot(_cross(u[0], w[0]), v[0])
-        b1 = _dot(_cross(u[1], w[1]), v[1])
-        b2 = _dot(_cross(u[2], w[2]), v[2])
-        a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
-        det_a = _dot(a[0], _cross(a[1], a[2]))
-        same_sign = (det_a > 0.0 and home_sign > 0.0) or (det_a < 0.0 and home_sign < 0.0)
-        home = b0 > sign_tol and b1 > sign_tol and b2 > sign_tol and same_sign
-        home = home and abs(det_a) > sign_tol
+        home = _home_rule(R, w, u, v0, home_sign, sign_tol)
         residual = _ld(S, _RES, i)
         settled = math.isfinite(residual) and residual <= tol and home
         th, sp, tau = _ld3(S, _TH, i), _ld3(S, _SP, i), _ld3(S, _TAU, i)
