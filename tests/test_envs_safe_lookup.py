@@ -24,7 +24,7 @@ from conftest import ENV_COVER_LEVEL
 import spm_pin as spm
 from spm_pin.envs import OrientSettings, OrientVectorEnv
 from spm_pin.envs._core import OrientCore
-from spm_pin.envs._safe_lookup import SafeLookup
+from spm_pin.envs._safe_lookup import BITMAP_DEPTH, SafeLookup
 from spm_pin.errors import InputError
 from spm_pin.hardware.config import SafetyLimits
 from spm_pin.planning import SafeCover, SafeSet, safe_set_of
@@ -247,19 +247,63 @@ def test_a_bad_cover_or_one_of_another_design_is_refused(cover_path: Path, tmp_p
 
 def test_the_compiled_lookup_answers_as_numpy(safe: SafeSet, lookup: SafeLookup) -> None:
     """Random inputs and inputs whose gaps lie on the grid lines of the finest cells
-    (where a point belongs to the cell below it): the same answers, one by one."""
+    (where a point belongs to the cell below it): the same answers, one by one, with
+    the levels held as bitmaps, searched in their keys, or both."""
     pytest.importorskip("numba")
     rng = np.random.default_rng(21)
     anywhere = rng.uniform(-math.pi, math.pi, size=(SAMPLES, 3))
     side = 0.5 / 2**FILL_LEVEL
     lines = rng.integers(0, int(360 / side), size=(SAMPLES, 2)) * side
     on_lines = safe.theta_of(lines[:, 0], lines[:, 1], rng.uniform(-math.pi, math.pi, SAMPLES))
-    for theta in (anywhere, on_lines, anywhere[:1]):
-        lookup.compiled = True
-        compiled = lookup.covered(theta)
-        assert lookup._kernel is not None  # the compiled path ran
-        lookup.compiled = False
-        np.testing.assert_array_equal(compiled, lookup.covered(theta))
-        if theta.shape[0] > 1:
-            assert np.any(compiled) and not np.all(compiled)
     lookup.compiled = True
+    assert lookup._covered_kernel() is not None
+    # The bitmaps to every level (the default) and none (every level searched).
+    for depth in (BITMAP_DEPTH, 0):
+        lookup._arrays = lookup.arrays(depth)
+        _, index, words, sides, _, _, keys = lookup._arrays
+        assert (words.size > 0) == (depth > 0)
+        assert sides.size == max(FILL_LEVEL - depth, 0) and (keys.size > 0) == (depth < FILL_LEVEL)
+        assert np.count_nonzero(index == -2) == lookup.covered_root_cells
+        for theta in (anywhere, on_lines, anywhere[:1]):
+            lookup.compiled = True
+            compiled = lookup.covered(theta)
+            lookup.compiled = False
+            np.testing.assert_array_equal(compiled, lookup.covered(theta))
+            if theta.shape[0] > 1:
+                assert np.any(compiled) and not np.all(compiled)
+    lookup.compiled = True
+    lookup._arrays = lookup.arrays()
+
+
+def test_bitmaps_and_searched_levels_mix(safe: SafeSet, cover_path: Path) -> None:
+    """Half of the cover's level-1 cells split into their four level-2 cells (the same
+    points covered): the compiled lookup with level 1 as bitmaps and level 2 searched,
+    with both as bitmaps and with both searched answers as numpy, which answers as
+    the unsplit cover."""
+    pytest.importorskip("numba")
+    lookup = SafeLookup.from_file(safe, cover_path)
+    plain = SafeLookup.from_file(safe, cover_path)
+    n = lookup._roots.shape[0]
+    (side, size, keys), *rest = lookup._levels
+    assert size == 2 * n and not rest  # the fixture's cover: level 1 alone
+    keep, split = keys[::2], keys[1::2]
+    i, j = split // size, split % size
+    children = np.sort(
+        np.concatenate([(2 * i + a) * 2 * size + 2 * j + b for a in (0, 1) for b in (0, 1)])
+    )
+    lookup._levels = [(side, size, keep), (side / 2, 2 * size, children)]
+    rng = np.random.default_rng(5)
+    theta = rng.uniform(-math.pi, math.pi, size=(SAMPLES, 3))
+    lines = rng.integers(0, int(360 / (side / 2)), size=(SAMPLES, 2)) * (side / 2)
+    on_lines = safe.theta_of(lines[:, 0], lines[:, 1], rng.uniform(-math.pi, math.pi, SAMPLES))
+    assert lookup._covered_kernel() is not None
+    for points in (theta, on_lines):
+        plain.compiled = lookup.compiled = False
+        expected = plain.covered(points)
+        np.testing.assert_array_equal(lookup.covered(points), expected)
+        assert np.any(expected) and not np.all(expected)
+        for depth, searched in ((1, 1), (BITMAP_DEPTH, 0), (0, 2)):
+            lookup._arrays = lookup.arrays(depth)
+            assert lookup._arrays[3].size == searched
+            lookup.compiled = True
+            np.testing.assert_array_equal(lookup.covered(points), expected)

@@ -12,8 +12,9 @@ robot's step is taken in floats, the operations of the numpy path in its order:
   limit of the last command;
 * the safety check of the step's end: the joint limits, then the cover's certified
   cells (the gaps of :meth:`~spm_pin.planning.SafeSet.gaps_of`, the root cell by
-  index, a finer cell by a binary search in its level's sorted keys, as
-  :meth:`SafeLookup.covered <spm_pin.envs._safe_lookup.SafeLookup.covered>`);
+  index, a finer cell by a bit of its root's bitmap, or below the bitmap's depth by
+  a binary search in its level's sorted keys, as :meth:`SafeLookup.covered
+  <spm_pin.envs._safe_lookup.SafeLookup.covered>`);
 * the safety clip's bisection (``"clip"``) or the end of the episode
   (``"terminate"``);
 * the platform rotation by Newton's method from the robot's last rotation (the
@@ -45,8 +46,21 @@ __all__ = ["CHECK", "KERNELS", "SAFE", "UNSAFE", "covered", "covered_rows", "ste
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
-#: A cover's arrays: (gaps, roots, sides, sizes, starts, keys), see :func:`covered`.
-Cover = tuple[FloatArray, BoolArray, FloatArray, IntArray, IntArray, IntArray]
+#: A cover's arrays: (gaps, index, words, sides, sizes, starts, keys), see
+#: :func:`covered`.
+Cover = tuple[
+    FloatArray,
+    npt.NDArray[np.int32],
+    npt.NDArray[np.uint64],
+    FloatArray,
+    IntArray,
+    IntArray,
+    IntArray,
+]
+#: A root cell of :func:`covered`'s index that is covered whole, or that holds no
+#: covered cell down to the bitmaps' depth.
+ROOT_COVERED = -2
+ROOT_EMPTY = -1
 
 #: Verdicts of :func:`_verdict`: outside the joint limits, or (cover only) outside
 #: the certified cells.
@@ -75,25 +89,41 @@ def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
     """Whether the gaps of the input (t0, t1, t2) [rad] lie in a certified cell.
 
     Args:
-        cover: (gaps, roots, sides, sizes, starts, keys):
-            gaps: (eta_2 - eta_1, eta_3 - eta_2 [deg], side of the root cells [deg]);
-            roots: the covered root cells (n, n);
-            sides, sizes: per level with covered cells, the cells' side [deg] and the
-            lattice size (keys are i * size + j);
+        cover: (gaps, index, words, sides, sizes, starts, keys):
+            gaps: (eta_2 - eta_1, eta_3 - eta_2 [deg], side of the root cells [deg],
+            2**depth: the bitmaps' cells per root side);
+            index: per root cell (n, n), :data:`ROOT_COVERED`, :data:`ROOT_EMPTY`, or
+            the first of its words;
+            words: the bitmaps, a root's 4**depth bits (its cells at ``depth``,
+            row-major; a bit is set where a covered cell of any level down to
+            ``depth`` holds that cell) in 64-bit words;
+            sides, sizes: per level deeper than ``depth`` with covered cells, the
+            cells' side [deg] and the lattice size (keys are i * size + j);
             starts: (levels + 1,), level m's keys are ``keys[starts[m]:starts[m + 1]]``;
-            keys: the sorted keys of every level, one after the other.
+            keys: the sorted keys of every such level, one after the other.
+
+    The cells' indices at every level come from the gaps over the root side, a
+    : i = floor(d / a * 2**level): halving a side scales the quotient exactly, so the
+    bitmap's cell lies in the level's cell as its lattice says.
     """
-    gaps, roots, sides, sizes, starts, keys = cover
+    gaps, index, words, sides, sizes, starts, keys = cover
     deg0, deg1, deg2 = t0 * _DEGREES, t1 * _DEGREES, t2 * _DEGREES
     d12 = (gaps[0] - (deg1 - deg0)) % 360.0
     d23 = (gaps[1] - (deg2 - deg1)) % 360.0
-    n = roots.shape[0]
+    n = index.shape[0]
     a = d12 / gaps[2]
     b = d23 / gaps[2]
     if not (a >= 0.0 and a < n and b >= 0.0 and b < n):  # NaN: outside
         return False
-    if roots[int(a), int(b)]:  # int() of a number >= 0: its floor
+    i, j = int(a), int(b)  # int() of a number >= 0: its floor
+    code = index[i, j]
+    if code == ROOT_COVERED:
         return True
+    if code >= 0:
+        cells = int(gaps[3])
+        bit = (int(a * gaps[3]) - i * cells) * cells + (int(b * gaps[3]) - j * cells)
+        if (words[code + (bit >> 6)] >> np.uint64(bit & 63)) & np.uint64(1):
+            return True
     for level in range(sides.shape[0]):
         side = sides[level]
         key = math.floor(d12 / side) * sizes[level] + math.floor(d23 / side)

@@ -9,7 +9,8 @@ in such a cell are safe for the safe set, whatever the turn about the axis. The
 lookup maps N input angles to their gaps, the gaps to the indices of the cell that
 holds them at each level, and the indices to the covered cells: a root cell by
 indexing a boolean mask, a finer cell by a binary search in the sorted keys of the
-covered cells of its level. A point on a grid line lies in the cells on both sides;
+covered cells of its level (numpy), or by a bit of its root cell's bitmap (the
+compiled lookup, :meth:`SafeLookup.arrays`). A point on a grid line lies in the cells on both sides;
 the one below it is taken (both are closed, so either certifies it).
 
 The joint limits are not a property of the gaps: the caller checks them first.
@@ -25,12 +26,17 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..planning import SafeCover, SafeSet
+from ._kinematic_kernel import ROOT_COVERED, ROOT_EMPTY, Cover
 
-__all__ = ["SafeLookup"]
+__all__ = ["BITMAP_DEPTH", "SafeLookup"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
+
+#: The deepest level of a cover that the compiled lookup holds as bitmaps (a root's
+#: 4**5 bits: 128 bytes); deeper levels are searched in their sorted keys.
+BITMAP_DEPTH = 5
 
 
 class SafeLookup:
@@ -88,20 +94,61 @@ class SafeLookup:
             ) from exc
         return cls(cover)
 
-    def arrays(self) -> tuple[FloatArray, BoolArray, FloatArray, IntArray, IntArray, IntArray]:
+    def arrays(self, depth: int = BITMAP_DEPTH) -> Cover:
         """The cover as the arrays of :func:`spm_pin.envs._kinematic_kernel.covered`:
-        (eta_2 - eta_1, eta_3 - eta_2 [deg], root side [deg]), the covered root
-        cells, and per level its side [deg], lattice size and the start of its keys
-        in the sorted keys of every level, one level after the other."""
+        (eta_2 - eta_1, eta_3 - eta_2 [deg], root side [deg], 2**d), the roots' index,
+        their bitmaps of the cells at level d (the deepest level with covered cells,
+        at most ``depth``), and per deeper level its side [deg], lattice size and the
+        start of its keys in the sorted keys of every such level, one after the
+        other."""
+        n = self._roots.shape[0]
+        levels = [((entry[1] // n).bit_length() - 1, entry) for entry in self._levels]
+        shallow = [(lv, entry[2]) for lv, entry in levels if lv <= depth]
+        deep = [entry for lv, entry in levels if lv > depth]
+        d = max((lv for lv, keys in shallow if keys.size), default=0)
         eta = np.degrees(np.asarray(self.safe_set.design.eta, dtype=float))
-        gaps = np.array([eta[1] - eta[0], eta[2] - eta[1], self.root_step_deg])
-        sides = np.array([side for side, _, _ in self._levels], dtype=float)
-        sizes = np.array([size for _, size, _ in self._levels], dtype=np.int64)
-        lengths = [keys.size for _, _, keys in self._levels]
+        gaps = np.array([eta[1] - eta[0], eta[2] - eta[1], self.root_step_deg, 2.0**d])
+        index, words = self._bitmaps(shallow, d)
+        sides = np.array([side for side, _, _ in deep], dtype=float)
+        sizes = np.array([size for _, size, _ in deep], dtype=np.int64)
+        lengths = [keys.size for _, _, keys in deep]
         starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-        keys = np.concatenate([np.zeros(0, np.int64)] + [k for _, _, k in self._levels])
-        roots = np.ascontiguousarray(self._roots, dtype=np.bool_)
-        return gaps, roots, sides, sizes, starts, keys.astype(np.int64)
+        keys = np.concatenate([np.zeros(0, np.int64)] + [k for _, _, k in deep])
+        return gaps, index, words, sides, sizes, starts, keys.astype(np.int64)
+
+    def _bitmaps(
+        self, levels: list[tuple[int, IntArray]], d: int
+    ) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.uint64]]:
+        """(index, words) of :func:`~spm_pin.envs._kinematic_kernel.covered` for the
+        covered cells of ``levels`` ((level, sorted keys) each, none deeper than d)."""
+        n = self._roots.shape[0]
+        index = np.full((n, n), ROOT_EMPTY, dtype=np.int32)
+        cells = 2**d
+        per_root = -(-(cells * cells) // 64)  # words per root
+        found = [(lv, keys // (n * 2**lv), keys % (n * 2**lv)) for lv, keys in levels]
+        flat = np.unique(np.concatenate([np.zeros(0, np.int64)] + [
+            (i >> lv) * n + (j >> lv) for lv, i, j in found
+        ]))  # fmt: skip
+        index.reshape(-1)[flat] = np.arange(flat.size, dtype=np.int32) * per_root
+        index[self._roots] = ROOT_COVERED
+        words = np.zeros(flat.size * per_root, dtype=np.uint64)
+        for lv, i, j in found:
+            if i.size == 0:
+                continue
+            first = index.reshape(-1)[(i >> lv) * n + (j >> lv)].astype(np.int64)
+            keep = first >= 0  # not under a covered root
+            span = 2 ** (d - lv)  # the bitmap's cells per side of this level's cell
+            row = (i - ((i >> lv) << lv)) * span
+            column = (j - ((j >> lv) << lv)) * span
+            for di in range(span):
+                for dj in range(span):
+                    bit = (row + di) * cells + column + dj
+                    np.bitwise_or.at(
+                        words,
+                        (first + (bit >> 6))[keep],
+                        (np.uint64(1) << (bit & 63).astype(np.uint64))[keep],
+                    )
+        return index, words
 
     @property
     def covered_root_cells(self) -> int:
