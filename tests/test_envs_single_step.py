@@ -88,7 +88,10 @@ def test_a_robot_handed_back_is_stepped_by_numpy(env_cover_path: str, kind: str)
         calls.append(int(rows.size))
         handed[:] = True
 
-    fused.core._call_step = hand_back
+    fused.core._step_call = lambda rows, action, out, handed, *rest: (
+        hand_back,
+        (rows, action, out, handed),
+    )
     fused.reset(seed=11)
     numpy.reset(seed=11)
     steps = 0

@@ -355,3 +355,25 @@ def test_the_lanes_family_divides_as_numpy_and_falls_back_to_plain_twins() -> No
     assert mixed["_half_divided"](1.0, 4.0) == 0.125
     with pytest.raises(ZeroDivisionError):
         mixed["_half_divided"](1.0, 0.0)
+
+
+def _scaled_sum(x: np.ndarray, scale: float, out: np.ndarray) -> None:
+    """out[i] = scale * sum of row i (a kernel that writes its arguments)."""
+    for i in range(x.shape[0]):
+        out[i] = scale * (x[i, 0] + x[i, 1])
+
+
+def test_the_entry_point_is_the_kernel_without_dispatch() -> None:
+    """``entry``: the compiled machine code for the arguments' types (compiled on
+    demand, not the dispatcher), the same results; a Python function is itself."""
+    kernel = _jit.kernels((_scaled_sum,))["_scaled_sum"]
+    x = np.arange(6.0).reshape(3, 2)
+    out, expected = np.zeros(3), np.zeros(3)
+    point = _jit.entry(kernel, (x, 2.5, out))  # before any call: compiled here
+    assert point is not kernel and callable(point)
+    point(x, 2.5, out)
+    kernel(x, 2.5, expected)
+    np.testing.assert_array_equal(out, expected)
+    np.testing.assert_array_equal(out, 2.5 * x.sum(axis=1))
+    assert _jit.entry(kernel, (x, 2.5, out)) is point  # the one overload
+    assert _jit.entry(_scaled_sum, (x, 2.5, out)) is _scaled_sum

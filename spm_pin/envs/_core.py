@@ -135,7 +135,8 @@ class OrientCore:
         self._kernel: Any = None
         self._kernel_args: tuple[Any, ...] = ()
         self._observe: Any = None
-        #: :meth:`step_one`'s buffers (rows, actions, out, handed, counts).
+        #: :meth:`step_one`'s buffers (rows, actions, out, handed, counts), the
+        #: kernel's entry point and its arguments.
         self._one: tuple[Any, ...] | None = None
         index = np.argwhere(self.safe_set.safe)
         #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
@@ -350,10 +351,24 @@ class OrientCore:
         counts: IntArray,
         arguments: tuple[Any, ...],
     ) -> None:
-        """The compiled :func:`~spm_pin.envs._kinematic_kernel.step` of ``rows``."""
+        """The compiled step of ``rows`` (:meth:`_step_call`)."""
+        kernel, args = self._step_call(rows, action, out, handed, counts, arguments)
+        kernel(*args)
+
+    def _step_call(
+        self,
+        rows: IntArray,
+        action: FloatArray,
+        out: FloatArray,
+        handed: BoolArray,
+        counts: IntArray,
+        arguments: tuple[Any, ...],
+    ) -> tuple[Any, tuple[Any, ...]]:
+        """(the compiled :func:`~spm_pin.envs._kinematic_kernel.step`, its arguments
+        for ``rows``)."""
         if self._kernel is None:
             self._kernel = _jit.kernels(_kinematic_kernel.KERNELS)["step"]
-        self._kernel(
+        args = (
             rows,
             action,
             self.theta,
@@ -367,6 +382,7 @@ class OrientCore:
             handed,
             counts,
         )
+        return self._kernel, args
 
     def _compiled_step(self) -> tuple[Any, ...] | None:
         """:meth:`fused_arguments` where :meth:`_call_step` applies, else None."""
@@ -381,26 +397,32 @@ class OrientCore:
     def step_one(self, action: FloatArray) -> StepOne:
         """:meth:`step_rows` of robot 0 alone (a single environment's) with the
         normalised action (3,): the same step, with less work around the compiled
-        kernel (its buffers made once, the result read as Python numbers)."""
-        arguments = self._compiled_step()
-        if arguments is None:
-            return StepOne.of(self.step_rows(_ROW, action[None]))
-        if self._one is None:
-            self._one = (
-                np.zeros(1, dtype=np.int64),
-                np.empty((1, 3)),
-                np.empty((1, 5)),
-                np.zeros(1, dtype=bool),
-                np.zeros(2, dtype=np.int64),
-            )
-        rows, actions, out, handed, counts = self._one
+        kernel (its arguments gathered once and passed to its compiled entry point
+        without numba's dispatch, :func:`spm_pin._jit.entry`; the result read as
+        Python numbers)."""
+        if self._one is None or not self.fused:  # made once, while fused
+            arguments = self._compiled_step()
+            if arguments is None:
+                return StepOne.of(self.step_rows(_ROW, action[None]))
+            if self._one is None:
+                buffers = (
+                    np.zeros(1, dtype=np.int64),
+                    np.empty((1, 3)),
+                    np.empty((1, 5)),
+                    np.zeros(1, dtype=bool),
+                    np.zeros(2, dtype=np.int64),
+                )
+                kernel, args = self._step_call(*buffers, arguments)
+                self._one = (*buffers, _jit.entry(kernel, args), args)
+        _, actions, out, handed, counts, call, args = self._one
         actions[0] = action
         handed[0] = False
-        counts[:] = 0
-        self._call_step(rows, actions, out, handed, counts, arguments)
+        counts[0] = counts[1] = 0
+        call(*args)
         assert self.lookup is not None
-        self.lookup.asked += int(counts[0])
-        self.lookup.settled += int(counts[1])
+        asked, settled = counts.tolist()
+        self.lookup.asked += asked
+        self.lookup.settled += settled
         if handed[0]:
             return StepOne.of(self._hand_back(_ROW, actions.copy()))
         reward, error, fraction, success, unsafe = out[0].tolist()
@@ -578,10 +600,8 @@ class OrientCore:
         and ``fused`` is on: the same numbers)."""
         sigma = self.settings.observation_noise
         if sigma == 0.0 and self.fused and (self._observe is not None or _jit.available()):
-            if self._observe is None:
-                self._observe = _jit.kernels(_observe_kernel.KERNELS)["observe_rows"]
             out = np.empty((rows.size, OBSERVATION_SIZE), dtype=np.float32)
-            self._observe(
+            args = (
                 np.ascontiguousarray(rows, dtype=np.int64),
                 self.R,
                 self.goal,
@@ -590,6 +610,10 @@ class OrientCore:
                 float(self.limits.max_speed),
                 out,
             )
+            if self._observe is None:  # the same types every call: no dispatch
+                kernel = _jit.kernels(_observe_kernel.KERNELS)["observe_rows"]
+                self._observe = _jit.entry(kernel, args)
+            self._observe(*args)
             return out
         theta = self.theta[rows]
         obs = np.concatenate(

@@ -491,7 +491,7 @@ class DynamicCore(OrientCore):
             and self.dynamics.friction is None
         )
 
-    def _call_step(
+    def _step_call(
         self,
         rows: IntArray,
         action: FloatArray,
@@ -499,10 +499,11 @@ class DynamicCore(OrientCore):
         handed: BoolArray,
         counts: IntArray,
         arguments: tuple[Any, ...],
-    ) -> None:
-        """The compiled step of ``rows``: :func:`~spm_pin.envs._block_kernel.step`
-        (robots in blocks, vectorised) where :meth:`_in_blocks`, else
-        :func:`~spm_pin.envs._dynamic_kernel.step` (the same bits)."""
+    ) -> tuple[Any, tuple[Any, ...]]:
+        """(the compiled step of ``rows``, its arguments):
+        :func:`~spm_pin.envs._block_kernel.step` (robots in blocks, vectorised) where
+        :meth:`_in_blocks`, else :func:`~spm_pin.envs._dynamic_kernel.step` (the same
+        bits)."""
         if self._in_blocks(rows.size):
             if self._block_kernel is None:
                 _jit.kernels(_dynamic_kernel.KERNELS)  # the plain twins it calls
@@ -513,7 +514,7 @@ class DynamicCore(OrientCore):
                 self._step_kernel = _jit.kernels(_dynamic_kernel.KERNELS)["step"]
             kernel = self._step_kernel
         motion, flags, weights, low, high, cover = arguments[:6]
-        kernel(
+        args = (
             rows,
             action,
             self.theta,
@@ -538,6 +539,7 @@ class DynamicCore(OrientCore):
             handed,
             counts,
         )
+        return kernel, args
 
     def _step_periods(self, rows: IntArray, action: FloatArray) -> StepResult:
         """:meth:`step_rows` period by period: the physics steps of every row (compiled
