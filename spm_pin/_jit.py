@@ -22,7 +22,8 @@ hot loop should have inlined. Without numba, or with the environment variable
 that LLVM turns into vector instructions (one robot per lane): numpy's error model (a
 float division by zero gives inf or NaN instead of raising, so no exception branch
 stops the vectoriser; the operations, and so the bits, are otherwise the same) and
-every function but the :func:`nogil` entry points inlined into its callers (LLVM alone
+every function but the :func:`nogil` entry points and the :func:`standalone` passes
+inlined into its callers (LLVM alone
 leaves some callees of a long loop body as calls, which no vector loop may hold). A
 function it does not list is called as the plain family's twin, compiled before.
 
@@ -42,7 +43,16 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["ENV_VARIABLE", "available", "entry", "inline", "kernels", "nogil", "ready"]
+__all__ = [
+    "ENV_VARIABLE",
+    "available",
+    "entry",
+    "inline",
+    "kernels",
+    "nogil",
+    "ready",
+    "standalone",
+]
 
 #: Set to ``0`` to run the Python kernels even where numba is installed.
 ENV_VARIABLE = "SPM_PIN_JIT"
@@ -59,6 +69,7 @@ _digests: dict[tuple[int, bool], str] = {}
 #: The attributes :func:`inline` and :func:`nogil` set on a function.
 _INLINE = "_spm_pin_jit_inline"
 _NOGIL = "_spm_pin_jit_nogil"
+_STANDALONE = "_spm_pin_jit_standalone"
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -84,6 +95,17 @@ def inline(function: F) -> F:
     caller.
     """
     setattr(function, _INLINE, True)
+    return function
+
+
+def standalone(function: F) -> F:
+    """Mark a kernel of the ``lanes`` family to be compiled as a function of its own
+    rather than inlined into its callers, returned unchanged: a function that holds
+    a vectorised loop (one pass over the robots), called a few times per step of its
+    callers. Inlining it would compile its body again in each caller, and the
+    largest bodies cost most of a family's compile time; the loops inside are
+    vectorised the same way in either case."""
+    setattr(function, _STANDALONE, True)
     return function
 
 
@@ -173,7 +195,7 @@ def _value_text(value: Any) -> str | None:
 
 def _digest(function: Callable[..., Any], lanes: bool) -> str:
     """A digest of what ``function`` compiles to in its family (``lanes``): its code,
-    its :func:`inline` and :func:`nogil` marks, the family, the digests of the
+    its :func:`inline`, :func:`nogil` and :func:`standalone` marks, the family, the digests of the
     compiled functions it calls and the values of the numbers, strings, arrays and
     tuples of its module that it names (numba freezes them into the machine code).
 
@@ -189,6 +211,7 @@ def _digest(function: Callable[..., Any], lanes: bool) -> str:
         function.__qualname__,
         repr(getattr(function, _INLINE, False)),
         repr(getattr(function, _NOGIL, False)),
+        repr(getattr(function, _STANDALONE, False)),
         f"lanes={lanes}",
         repr(function.__defaults__),
         *_code_text(code),
@@ -245,7 +268,8 @@ def _compile(numba: Any, function: Callable[..., Any], lanes: bool) -> Callable[
     with warnings.catch_warnings():  # a read-only install cannot cache: fine
         warnings.simplefilter("ignore", numba.NumbaWarning)
         free = bool(getattr(function, _NOGIL, False))
-        inlined = getattr(function, _INLINE, False) or (lanes and not free)
+        alone = free or bool(getattr(function, _STANDALONE, False))
+        inlined = getattr(function, _INLINE, False) or (lanes and not alone)
         compiled: Callable[..., Any] = numba.njit(
             cache=True,
             nogil=free,

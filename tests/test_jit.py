@@ -377,3 +377,30 @@ def test_the_entry_point_is_the_kernel_without_dispatch() -> None:
     np.testing.assert_array_equal(out, 2.5 * x.sum(axis=1))
     assert _jit.entry(kernel, (x, 2.5, out)) is point  # the one overload
     assert _jit.entry(_scaled_sum, (x, 2.5, out)) is _scaled_sum
+
+
+@_jit.standalone
+def _quotients(a: np.ndarray, b: float, out: np.ndarray) -> None:
+    """out[i] = a[i] / b through :func:`_quotient` (a pass: compiled on its own)."""
+    for i in range(a.shape[0]):
+        out[i] = _quotient(a[i], b)
+
+
+def test_a_standalone_pass_is_not_inlined_in_the_lanes_family() -> None:
+    """``standalone``: in the lanes family the pass keeps its own compiled body (its
+    callees are still inlined into it), with numpy's division; the plain family is
+    unchanged."""
+    lanes = _jit.kernels((_quotient, _quotients), lanes=True)
+    plain = _jit.kernels((_quotient, _quotients))
+    assert lanes["_quotients"].targetoptions["inline"] == "never"  # type: ignore[attr-defined]
+    assert lanes["_quotient"].targetoptions["inline"] == "always"  # type: ignore[attr-defined]
+    a = np.array([1.0, -3.0, 0.0])
+    out, expected = np.empty(3), np.empty(3)
+    lanes["_quotients"](a, 4.0, out)
+    plain["_quotients"](a, 4.0, expected)
+    np.testing.assert_array_equal(out, a / 4.0)
+    np.testing.assert_array_equal(out, expected)
+    lanes["_quotients"](a, 0.0, out)  # numpy's error model: no exception
+    assert out[0] == math.inf and out[1] == -math.inf and math.isnan(out[2])
+    with pytest.raises(ZeroDivisionError):
+        plain["_quotients"](a, 0.0, expected)

@@ -140,6 +140,7 @@ def _pick3(take: bool, a: Vec, b: Vec) -> Vec:
     return (a[0] if take else b[0], a[1] if take else b[1], a[2] if take else b[2])
 
 
+@_jit.standalone
 def _trig_pass(S: FloatArray, row: int, out: int) -> None:
     """cos then sin of three rows from ``row`` into six rows from ``out``."""
     for i in range(BLOCK):
@@ -149,6 +150,7 @@ def _trig_pass(S: FloatArray, row: int, out: int) -> None:
             _st(S, out + 3 + j, i, math.sin(angle))
 
 
+@_jit.standalone
 def _drive_pass(
     S: FloatArray, offset: float, position: bool, servo: Servo, full: float, f: Flat
 ) -> None:
@@ -183,6 +185,7 @@ def _drive_pass(
         _st3(S, _TAU, i, tau)
 
 
+@_jit.standalone
 def _newton_pass(S: FloatArray, cos_a2: float, stop: float, v0: Mat) -> int:
     """One iteration of :func:`~spm_pin.dynamics._reduced_kernel._newton` up to the
     turn's cos and sin, for the robots still turning: the residual, whether they go
@@ -202,6 +205,7 @@ def _newton_pass(S: FloatArray, cos_a2: float, stop: float, v0: Mat) -> int:
     return going
 
 
+@_jit.standalone
 def _turn_pass(S: FloatArray) -> None:
     """Turn the rotation of each robot still turning about its axis (each column)."""
     for i in range(BLOCK):
@@ -212,6 +216,7 @@ def _turn_pass(S: FloatArray) -> None:
         _stm(S, _RR, i, R)
 
 
+@_jit.standalone
 def _euler_pass(
     S: FloatArray, P: FloatArray, step: int, dt: float, servo: Servo, full: float, f: Flat
 ) -> None:
@@ -249,6 +254,7 @@ def _euler_pass(
         _st(S, _DONE, i, float(step) if not taken and done == full else done)
 
 
+@_jit.standalone
 def period(
     S: FloatArray,
     P: FloatArray,
