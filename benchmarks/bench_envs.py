@@ -49,6 +49,7 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    <= 20 us, both with cover_only (its fastest safety check; section 4 has them
    with cover_only too, beside the rows without a cover).
 
+Each timed call is one step with seeded random actions drawn before the timing.
 Batched steps are timed with a garbage collection before each sample; single steps
 (ours and MuJoCo's alike) back to back with the collector off after one collection,
 as ``timeit`` times: a full collection of a heap holding thousands of robots before
@@ -70,6 +71,7 @@ from ._common import limit_to_one_thread
 THREADS_LIMITED = limit_to_one_thread()
 
 import importlib.util  # noqa: E402
+import itertools  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -149,7 +151,7 @@ FULL = Sizes(
     single_repeats=300,
     dynamic_batch=4096,
     dynamic_repeats=5,
-    dynamic_single_repeats=50,
+    dynamic_single_repeats=300,
     swing_time=10.0,
     swing_chunk=1.0,
     cover_level=3,
@@ -168,13 +170,17 @@ QUICK = Sizes(
 )
 
 
-def _stepper(env: Any, n: int) -> Any:
-    """A call that steps ``env`` once with the next seeded random actions."""
+def _stepper(env: Any, n: int, calls: int) -> Any:
+    """A call that steps ``env`` once with the next seeded random actions, drawn
+    before the timing (``calls`` of them, then again from the first): the timed call
+    is the step alone."""
     rng = np.random.default_rng(SEED)
     shape = (3,) if n == 0 else (n, 3)
+    drawn = [rng.uniform(-1.0, 1.0, size=shape).astype(np.float32) for _ in range(calls)]
+    turn = itertools.cycle(drawn)
 
     def step() -> Any:
-        return env.step(rng.uniform(-1.0, 1.0, size=shape).astype(np.float32))
+        return env.step(next(turn))
 
     return step
 
@@ -204,11 +210,11 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, A
     load_s = time.perf_counter() - start
     only = OrientVectorEnv(sizes.batch, settings, cover=str(path), cover_only=True)
     env.reset(seed=SEED)
-    timed = time_call(_stepper(env, sizes.batch), repeats=sizes.repeats)
+    timed = time_call(_stepper(env, sizes.batch, sizes.repeats + 1), repeats=sizes.repeats)
     lookup = env.core.lookup
     assert lookup is not None
     only.reset(seed=SEED)
-    timed_only = time_call(_stepper(only, sizes.batch), repeats=sizes.repeats)
+    timed_only = time_call(_stepper(only, sizes.batch, sizes.repeats + 1), repeats=sizes.repeats)
     # How much of the safe set the certified cells hold: random inputs, checked.
     rng = np.random.default_rng(SEED)
     theta = rng.uniform(-math.pi, math.pi, size=(CERTIFIED_SAMPLES, 3))
@@ -262,14 +268,18 @@ def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
         env = OrientDynamicVectorEnv(n, settings)
         env.core.threads = threads
         env.reset(seed=SEED)
-        timed = time_call(_stepper(env, n), repeats=sizes.dynamic_repeats)
+        timed = time_call(
+            _stepper(env, n, sizes.dynamic_repeats + 1), repeats=sizes.dynamic_repeats
+        )
         out[key] = {**timed.timing.summary(items=n), "n": n, "threads": env.core.chunks(n)}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
     for key, settings in (("single", plain), ("single_cover_only", only)):
         single = OrientDynamicEnv(settings, max_steps=10**7)
         single.reset(seed=SEED)
         timed = time_call(
-            _stepper(single, 0), repeats=sizes.dynamic_single_repeats, collect_each=False
+            _stepper(single, 0, sizes.dynamic_single_repeats + 1),
+            repeats=sizes.dynamic_single_repeats,
+            collect_each=False,
         )
         out[key] = {**timed.timing.summary(items=1), "n": 1}
     out["closure_error"] = closure
@@ -292,7 +302,11 @@ def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
 
     single = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
     single.reset(seed=SEED)
-    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats, collect_each=False)
+    timed = time_call(
+        _stepper(single, 0, sizes.single_repeats + 1),
+        repeats=sizes.single_repeats,
+        collect_each=False,
+    )
     out: dict[str, Any] = {
         "available": True,
         "method": "MujocoOrientEnv (benchmarks/_mujoco_env.py): urdf/spm.xml with position "
@@ -305,7 +319,7 @@ def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
     copies = [MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7) for _ in range(n)]
     vector = gymnasium.vector.SyncVectorEnv([_returning(env) for env in copies])
     vector.reset(seed=SEED)
-    timed = time_call(_stepper(vector, n), repeats=sizes.repeats)
+    timed = time_call(_stepper(vector, n, sizes.repeats + 1), repeats=sizes.repeats)
     out["vector"] = {**timed.timing.summary(items=n), "n": n}
     out["closure_error"] = max(env.closure_residual() for env in [single, *copies])
     return out
@@ -382,7 +396,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     results: dict[str, dict[str, Any]] = {}
     vector = OrientVectorEnv(sizes.batch)
     vector.reset(seed=SEED)
-    timed = time_call(_stepper(vector, sizes.batch), repeats=sizes.repeats)
+    timed = time_call(_stepper(vector, sizes.batch, sizes.repeats + 1), repeats=sizes.repeats)
     results["vector"] = {**timed.timing.summary(items=sizes.batch), "n": sizes.batch}
     folder = tempfile.TemporaryDirectory()
     cover_path = Path(folder.name) / "cover.npz"
@@ -390,13 +404,19 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     cover["speed_ratio_vs_without"] = results["vector"]["median_s"] / cover["median_s"]
     single = OrientEnv(max_steps=10**7)
     single.reset(seed=SEED)
-    timed = time_call(_stepper(single, 0), repeats=sizes.single_repeats, collect_each=False)
+    timed = time_call(
+        _stepper(single, 0, sizes.single_repeats + 1),
+        repeats=sizes.single_repeats,
+        collect_each=False,
+    )
     results["single"] = {**timed.timing.summary(items=1), "n": 1}
     peer_env = gymnasium.vector.SyncVectorEnv(
         [lambda: OrientEnv(max_steps=10**7) for _ in range(sizes.peer_batch)]
     )
     peer_env.reset(seed=SEED)
-    timed = time_call(_stepper(peer_env, sizes.peer_batch), repeats=sizes.repeats)
+    timed = time_call(
+        _stepper(peer_env, sizes.peer_batch, sizes.repeats + 1), repeats=sizes.repeats
+    )
     peer = {
         **timed.timing.summary(items=sizes.peer_batch),
         "n": sizes.peer_batch,

@@ -23,9 +23,9 @@ that LLVM turns into vector instructions (one robot per lane): numpy's error mod
 float division by zero gives inf or NaN instead of raising, so no exception branch
 stops the vectoriser; the operations, and so the bits, are otherwise the same) and
 every function but the :func:`nogil` entry points and the :func:`standalone` passes
-inlined into its callers (LLVM alone
-leaves some callees of a long loop body as calls, which no vector loop may hold). A
-function it does not list is called as the plain family's twin, compiled before.
+inlined into its callers (LLVM alone leaves some callees of a long loop body as
+calls, which no vector loop may hold). A function it does not list is called as the
+plain family's twin, compiled before.
 
 The machine code is cached on disk (numba's cache, beside the sources) under each
 kernel's name and a digest of its code, of the kernels it calls and of the constants
@@ -66,7 +66,8 @@ _originals: list[Callable[..., Any]] = []
 #: The digest of each compiled function (by the id of its Python function and its
 #: family): see :func:`_digest`.
 _digests: dict[tuple[int, bool], str] = {}
-#: The attributes :func:`inline` and :func:`nogil` set on a function.
+#: The attributes :func:`inline`, :func:`nogil` and :func:`standalone` set on a
+#: function.
 _INLINE = "_spm_pin_jit_inline"
 _NOGIL = "_spm_pin_jit_nogil"
 _STANDALONE = "_spm_pin_jit_standalone"
@@ -195,9 +196,10 @@ def _value_text(value: Any) -> str | None:
 
 def _digest(function: Callable[..., Any], lanes: bool) -> str:
     """A digest of what ``function`` compiles to in its family (``lanes``): its code,
-    its :func:`inline`, :func:`nogil` and :func:`standalone` marks, the family, the digests of the
-    compiled functions it calls and the values of the numbers, strings, arrays and
-    tuples of its module that it names (numba freezes them into the machine code).
+    its :func:`inline`, :func:`nogil` and :func:`standalone` marks, the family, the
+    digests of the compiled functions it calls and the values of the numbers,
+    strings, arrays and tuples of its module that it names (numba freezes them into
+    the machine code).
 
     numba's cache on disk is stamped with the source file of each function alone:
     a caller compiled from one file keeps the machine code of its callees in

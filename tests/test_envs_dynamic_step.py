@@ -58,15 +58,21 @@ def _make(n: int, cover: str, options: dict[str, Any], fused: bool) -> OrientDyn
 
 
 def _count_calls(env: Any) -> list[int]:
-    """How many robots each call of the compiled step took."""
+    """How many robots each call of the compiled step took (batched calls, and the
+    single env's calls of the kernel it gathered its arguments for once)."""
     calls: list[int] = []
-    original = env.core._call_step
+    original = env.core._step_call
 
-    def spy(rows: Any, *args: Any) -> Any:
-        calls.append(int(rows.size))
-        return original(rows, *args)
+    def spy(*args: Any) -> Any:
+        kernel, arguments = original(*args)
 
-    env.core._call_step = spy
+        def counted(*values: Any) -> Any:
+            calls.append(int(values[0].size))
+            return kernel(*values)
+
+        return counted, arguments
+
+    env.core._step_call = spy
     return calls
 
 

@@ -102,9 +102,9 @@ def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
             starts: (levels + 1,), level m's keys are ``keys[starts[m]:starts[m + 1]]``;
             keys: the sorted keys of every such level, one after the other.
 
-    The cells' indices at every level come from the gaps over the root side, a
-    : i = floor(d / a * 2**level): halving a side scales the quotient exactly, so the
-    bitmap's cell lies in the level's cell as its lattice says.
+    A cell's index at each level is floor(d / a * 2**level), d a gap and a the root
+    side: halving a side scales the quotient exactly, so a bitmap's cell lies in the
+    cell of each coarser level that its lattice says.
     """
     gaps, index, words, sides, sizes, starts, keys = cover
     deg0, deg1, deg2 = t0 * _DEGREES, t1 * _DEGREES, t2 * _DEGREES

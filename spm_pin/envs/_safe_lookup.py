@@ -10,8 +10,9 @@ lookup maps N input angles to their gaps, the gaps to the indices of the cell th
 holds them at each level, and the indices to the covered cells: a root cell by
 indexing a boolean mask, a finer cell by a binary search in the sorted keys of the
 covered cells of its level (numpy), or by a bit of its root cell's bitmap (the
-compiled lookup, :meth:`SafeLookup.arrays`). A point on a grid line lies in the cells on both sides;
-the one below it is taken (both are closed, so either certifies it).
+compiled lookup, :meth:`SafeLookup.arrays`). A point on a grid line lies in the
+cells on both sides; the one below it is taken (both are closed, so either certifies
+it).
 
 The joint limits are not a property of the gaps: the caller checks them first.
 """
