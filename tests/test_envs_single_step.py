@@ -18,6 +18,7 @@ pytest.importorskip("gymnasium")
 
 from spm_pin import _jit
 from spm_pin.envs import OrientDynamicEnv, OrientDynamicVectorEnv, OrientEnv, OrientVectorEnv
+from spm_pin.errors import InputError
 
 needs_numba = pytest.mark.skipif(not _jit.available(), reason="numba is not installed")
 
@@ -120,3 +121,77 @@ def test_without_the_compiled_step_it_is_step_rows(env_cover_path: str) -> None:
         if _same_step(single, vector, action):
             break
     assert single.core._one is None
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", KINDS)
+def test_bad_actions_are_refused_and_leave_the_state(env_cover_path: str, kind: str) -> None:
+    """Through the compiled single step: a wrong shape, a value that is not finite or
+    not a number is an InputError before anything moves; a list, a float32 and a
+    float64 array of the same numbers step alike."""
+    envs = [_pair(kind, env_cover_path)[0] for _ in range(3)]
+    for env in envs:
+        env.reset(seed=4)
+        env.step(np.zeros(3, dtype=np.float32))  # the compiled call is made
+    env = envs[0]
+    assert env.core._one is not None
+    names = ("theta", "speed", "R", "hold", "steps")
+    before = [getattr(env.core, name).copy() for name in names]
+    bad_actions = (
+        np.array([np.nan, 0.0, 0.0], dtype=np.float32),
+        np.array([0.0, np.inf, 0.0]),
+        np.array([0.0, 0.0, -np.inf]),
+        np.zeros(2, dtype=np.float32),
+        np.zeros((1, 3), dtype=np.float32),
+        [0.0, float("nan"), 0.0],
+        "left",
+    )
+    for bad in bad_actions:
+        with pytest.raises(InputError, match="action"):
+            env.step(bad)
+        for name, value in zip(names, before, strict=True):
+            np.testing.assert_array_equal(getattr(env.core, name), value, err_msg=name)
+    same = [0.25, -0.5, 0.75]
+    steps = [
+        envs[0].step(same),
+        envs[1].step(np.array(same, dtype=np.float32)),
+        envs[2].step(np.array(same)),
+    ]
+    for other in steps[1:]:
+        np.testing.assert_array_equal(other[0], steps[0][0])
+        assert other[1:4] == steps[0][1:4]
+    assert steps[0][4]["orientation_error"] == steps[2][4]["orientation_error"]
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_steps_observation_and_info_are_fresh_copies(env_cover_path: str, kind: str) -> None:
+    """The observation and the info's arrays of a step are the state after it, and
+    neither the next step nor a change of the state alters them; the compiled record
+    and the numpy path (``fused`` off) give the same keys and numbers."""
+    env = _pair(kind, env_cover_path)[0]
+    plain = _pair(kind, env_cover_path)[0]
+    plain.core.fused = False
+    env.reset(seed=6)
+    plain.reset(seed=6)
+    rng = np.random.default_rng(1)
+    kept = []
+    for _ in range(6):
+        action = rng.uniform(-1.0, 1.0, size=3).astype(np.float32)
+        obs, _, _, _, info = env.step(action)
+        p_obs, _, _, _, p_info = plain.step(action)
+        assert env.core._record is not None and plain.core._record is None
+        assert list(info) == list(p_info)
+        np.testing.assert_allclose(obs, p_obs, rtol=0.0, atol=1e-6)
+        for key, value in info.items():
+            np.testing.assert_allclose(value, p_info[key], rtol=0.0, atol=1e-9, err_msg=key)
+        for key, name, _ in env.core.RECORD:
+            np.testing.assert_array_equal(info[key], getattr(env.core, name)[0], err_msg=key)
+        kept.append((obs, info, obs.copy(), {key: np.copy(value) for key, value in info.items()}))
+    env.core.theta[0] += 0.1
+    env.core.goal_theta[0] += 0.1
+    for obs, info, obs_then, info_then in kept:
+        np.testing.assert_array_equal(obs, obs_then)
+        for key, value in info_then.items():
+            np.testing.assert_array_equal(info[key], value, err_msg=key)
+    assert kept[0][0] is not kept[1][0] and kept[0][1]["theta"] is not kept[1][1]["theta"]

@@ -213,6 +213,15 @@ class DynamicCore(OrientCore):
             which takes over where the call stops); set False for the loop alone.
     """
 
+    RECORD = (
+        *OrientCore.RECORD,
+        ("theta_dot", "speed", 3),
+        ("servo_goal", "servo_goal", 3),
+        ("torque", "torque", 3),
+        ("torque_speed", "torque_speed", 3),
+        ("servo_load", "servo_load", 0),
+    )
+
     def __init__(self, settings: OrientSettings, num: int, physics: PhysicsSettings) -> None:
         super().__init__(settings, num)
         self.physics = physics

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["KERNELS", "observe_rows"]
+__all__ = ["KERNELS", "observe_record", "observe_rows"]
 
 
 def observe_rows(
@@ -43,5 +43,29 @@ def observe_rows(
             out[m, 18 + i] = min(max(speed[r, i] / max_speed, -1.0), 1.0)
 
 
-#: The kernels: what :func:`spm_pin._jit.kernels` compiles.
-KERNELS = (observe_rows,)
+def observe_record(
+    rows: npt.NDArray[np.int64],
+    R: npt.NDArray[np.float64],
+    goal: npt.NDArray[np.float64],
+    theta: npt.NDArray[np.float64],
+    speed: npt.NDArray[np.float64],
+    max_speed: float,
+    out: npt.NDArray[np.float32],
+    sources: tuple[npt.NDArray[np.float64], ...],
+    record: npt.NDArray[np.float64],
+) -> None:
+    """:func:`observe_rows` of one robot (``rows`` (1,)), and its row of each of the
+    ``sources`` (arrays (N, k), the k of each its own), one after the other, into
+    ``record``: a single environment's observation and the numbers of its info in one
+    call."""
+    observe_rows(rows, R, goal, theta, speed, max_speed, out)
+    r = rows[0]
+    at = 0
+    for source in sources:
+        for j in range(source.shape[1]):
+            record[at] = source[r, j]
+            at += 1
+
+
+#: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
+KERNELS = (observe_rows, observe_record)

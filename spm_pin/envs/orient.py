@@ -31,7 +31,6 @@ in meshcat (:class:`~spm_pin.viz.Visualizer`, started at the first render).
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import gymnasium
@@ -49,8 +48,6 @@ __all__ = ["RENDER_MODES", "OrientEnv", "settings_from"]
 ObsArray = npt.NDArray[np.float32]
 #: The render modes of both environments.
 RENDER_MODES = ("rgb_array", "human")
-#: Actions checked in Python rather than by numpy (a single environment's three).
-_FEW = 8
 
 
 def settings_from(settings: OrientSettings | None, options: dict[str, Any]) -> OrientSettings:
@@ -91,33 +88,6 @@ def observation_space() -> spaces.Box:
 def action_space() -> spaces.Box:
     """The action space of one robot (3 normalised speeds in [-1, 1])."""
     return spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
-
-
-def _finite(values: npt.NDArray[np.float64]) -> bool:
-    """Every value finite (a few: in Python, faster than numpy's call for them)."""
-    if values.size <= _FEW:
-        return all(map(math.isfinite, values.flat))
-    return bool(np.isfinite(values).all())
-
-
-def check_actions(actions: npt.ArrayLike, shape: tuple[int, ...]) -> npt.NDArray[np.float64]:
-    """Actions as floats of ``shape``, finite; InputError otherwise (values outside
-    [-1, 1] are clipped by the step)."""
-    try:
-        values = np.asarray(actions, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(
-            f"action must be numbers of shape {shape}, got {actions!r}",
-            argument="action",
-            value=actions,
-        ) from None
-    if values.shape != shape or not _finite(values):
-        raise InputError(
-            f"action must be finite numbers of shape {shape}, got shape {values.shape}",
-            argument="action",
-            value=actions,
-        )
-    return values
 
 
 class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
@@ -176,14 +146,19 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         return obs, self._info(float(self.core.error(_ROW)[0]))
 
     def step(self, action: npt.ArrayLike) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
-        """One control period with the commanded speeds ``action`` (3,) in [-1, 1]."""
-        values = check_actions(action, (3,))
-        result = self.core.step_one(values)
-        obs = self.core.observe(_ROW, [self.np_random])[0]
-        info = self._info(result.error)
-        info["step_fraction"] = result.fraction
-        info["success"] = result.success
-        info["unsafe"] = result.unsafe
+        """One control period with the normalised action (3,) in [-1, 1] (see the
+        module); the info: ``orientation_error`` [rad], ``step_fraction``, ``success``,
+        ``unsafe`` and the core's :data:`~spm_pin.envs._core.OrientCore.RECORD` entries
+        (``theta``, ``goal_theta`` and what the dynamic environment adds)."""
+        result = self.core.step_one(action)
+        obs, record = self.core.observe_one(self.np_random)
+        info = {
+            "orientation_error": result.error,
+            "step_fraction": result.fraction,
+            "success": result.success,
+            "unsafe": result.unsafe,
+            **record,
+        }
         if self.render_mode == "human":
             self.render()
         return obs, result.reward, result.terminated, result.truncated, info

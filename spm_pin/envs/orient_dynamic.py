@@ -31,10 +31,8 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy.typing as npt
-
 from ._dynamic import DynamicCore, PhysicsSettings, physics_from
-from .orient import ObsArray, OrientEnv
+from .orient import OrientEnv
 from .settings import OrientSettings
 
 __all__ = ["OrientDynamicEnv"]
@@ -70,9 +68,3 @@ class OrientDynamicEnv(OrientEnv):
         self.physics, rest = physics_from(physics, options)
         super().__init__(settings, render_mode, **rest)
         self.core = DynamicCore(self.settings, 1, self.physics)
-
-    def step(self, action: npt.ArrayLike) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
-        """One control period with the normalised action (3,) in [-1, 1]."""
-        obs, reward, terminated, truncated, info = super().step(action)
-        info.update(self.core.extra_info(0))
-        return obs, reward, terminated, truncated, info

@@ -25,12 +25,12 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..errors import InputError
+from ._actions import check_actions
 from ._core import OrientCore
 from ._render import HumanView, draw_frame
 from .orient import (
     RENDER_MODES,
     action_space,
-    check_actions,
     check_render_mode,
     observation_space,
     settings_from,
