@@ -1,4 +1,4 @@
-"""The single environments' step (``OrientCore.step_one``): robot 0 alone through the
+"""The single environments' step (``SingleStep``): robot 0 alone through the
 compiled kernel with buffers made once and its result read as Python numbers.
 
 It must be the vector environment's step of one robot: the same observations,
@@ -54,11 +54,17 @@ def _same_step(single: Any, vector: Any, action: np.ndarray) -> bool:
 
 
 @needs_numba
+@pytest.mark.parametrize("only", [True, False], ids=["cover_only", "cover"])
 @pytest.mark.parametrize("kind", KINDS)
-def test_the_single_step_is_the_vector_step_of_one_robot(env_cover_path: str, kind: str) -> None:
+def test_the_single_step_is_the_vector_step_of_one_robot(
+    env_cover_path: str, kind: str, only: bool
+) -> None:
     """Step for step, the single env gives what the vector env gives its one robot,
-    its state is the same, and the cover's checks are counted alike."""
-    single, vector = _pair(kind, env_cover_path, safety="clip")
+    its state is the same, and the cover's checks are counted alike; the single env
+    takes its whole step in one compiled call, and with the cover alone (not
+    ``cover_only``) the robot leaves the certified cells, so that call hands it
+    back to numpy at some steps."""
+    single, vector = _pair(kind, env_cover_path, safety="clip", cover_only=only)
     single.reset(seed=7)
     vector.reset(seed=7)
     np.testing.assert_array_equal(single.core.theta, vector.core.theta)
@@ -72,7 +78,9 @@ def test_the_single_step_is_the_vector_step_of_one_robot(env_cover_path: str, ki
             np.testing.assert_array_equal(getattr(single.core, name), getattr(vector.core, name))
     a, b = single.core.lookup, vector.core.lookup
     assert a.asked > 0 and (a.asked, a.settled) == (b.asked, b.settled)
-    assert single.core._one is not None and ends > 0
+    assert single.single._whole is not None and ends > 0
+    assert single.core.handed_rows == vector.core.handed_rows
+    assert (single.core.handed_rows > 0) == (not only)
 
 
 @needs_numba
@@ -112,7 +120,7 @@ def test_a_robot_handed_back_is_stepped_by_numpy(env_cover_path: str, kind: str)
 
 @needs_numba
 def test_without_the_compiled_step_it_is_step_rows(env_cover_path: str) -> None:
-    """``fused`` off: ``step_one`` is ``step_rows`` of row 0 (no buffers made)."""
+    """``fused`` off: ``SingleStep.step_one`` is ``step_rows`` of row 0 (no buffers made)."""
     single, vector = _pair("dynamic", env_cover_path)
     for env in (single, vector):
         env.core.fused = False
@@ -120,7 +128,7 @@ def test_without_the_compiled_step_it_is_step_rows(env_cover_path: str) -> None:
     for action in _actions(8, 40):
         if _same_step(single, vector, action):
             break
-    assert single.core._one is None
+    assert single.single._one is None
 
 
 @needs_numba
@@ -134,7 +142,7 @@ def test_bad_actions_are_refused_and_leave_the_state(env_cover_path: str, kind: 
         env.reset(seed=4)
         env.step(np.zeros(3, dtype=np.float32))  # the compiled call is made
     env = envs[0]
-    assert env.core._one is not None
+    assert env.single._one is not None
     names = ("theta", "speed", "R", "hold", "steps")
     before = [getattr(env.core, name).copy() for name in names]
     bad_actions = (
@@ -180,7 +188,7 @@ def test_a_steps_observation_and_info_are_fresh_copies(env_cover_path: str, kind
         action = rng.uniform(-1.0, 1.0, size=3).astype(np.float32)
         obs, _, _, _, info = env.step(action)
         p_obs, _, _, _, p_info = plain.step(action)
-        assert env.core._record is not None and plain.core._record is None
+        assert env.single._record is not None and plain.single._record is None
         assert list(info) == list(p_info)
         np.testing.assert_allclose(obs, p_obs, rtol=0.0, atol=1e-6)
         for key, value in info.items():

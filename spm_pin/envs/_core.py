@@ -25,7 +25,6 @@ from ..kinematics import forward_kinematics
 from ..kinematics.fk import _SIGN_TOL
 from ..planning import SafeSet, safe_set_of
 from . import _kinematic_kernel, _observe_kernel
-from ._actions import check_actions, fill_action
 from ._safe_lookup import SafeLookup
 from .settings import OrientSettings
 
@@ -109,18 +108,6 @@ class StepOne(NamedTuple):
         )
 
 
-class _One(NamedTuple):
-    """:meth:`OrientCore.step_one`'s compiled call: its buffers (robot 0's action
-    row, out, handed, counts), the kernel's entry point and its arguments."""
-
-    action: FloatArray
-    out: FloatArray
-    handed: BoolArray
-    counts: IntArray
-    call: Callable[..., None]
-    args: tuple[Any, ...]
-
-
 class OrientCore:
     """N kinematic robots stepped as numpy batches (see the module).
 
@@ -131,7 +118,11 @@ class OrientCore:
 
     #: What a single environment's step adds to its info from the state of robot 0,
     #: in order: (info key, state attribute, size: 3 for an array (3,), 0 for a
-    #: number) (:meth:`observe_one`).
+    #: number) (:class:`~spm_pin.envs._single.SingleStep`).
+    #: The kernels of the compiled step (:meth:`_step_call`'s ``step``), and the name
+    #: of the whole single step's family in :mod:`~spm_pin.envs._single_kernel`.
+    STEP_KERNELS: tuple[Callable[..., Any], ...] = _kinematic_kernel.KERNELS
+    SINGLE = "KINEMATIC"
     RECORD: tuple[tuple[str, str, int], ...] = (
         ("theta", "theta", 3),
         ("goal_theta", "goal_theta", 3),
@@ -156,10 +147,6 @@ class OrientCore:
         self._kernel: Any = None
         self._kernel_args: tuple[Any, ...] = ()
         self._observe: Any = None
-        self._one: _One | None = None
-        #: :meth:`observe_one`'s compiled call: (entry point, arguments, observation,
-        #: record, the record's parts (info key, slice or index)).
-        self._record: tuple[Any, ...] | None = None
         index = np.argwhere(self.safe_set.safe)
         #: The safe vertices of the gap plane (D12, D23 [deg]), (m, 2).
         self.vertices: FloatArray = np.stack(
@@ -350,6 +337,10 @@ class OrientCore:
         """:meth:`step_rows` without the compiled step: numpy."""
         return self._step_numpy(rows, action)
 
+    def record_sources(self) -> tuple[FloatArray, ...]:
+        """The arrays (N, k) of :data:`RECORD`'s entries, in its order (views)."""
+        return tuple(getattr(self, name).reshape(self.num, -1) for _, name, _ in self.RECORD)
+
     def _kernel_counts(
         self,
         rows: IntArray,
@@ -415,102 +406,6 @@ class OrientCore:
         ``handed_rows``)."""
         self.handed_rows += int(rows.size)
         return self._step_numpy(rows, action)
-
-    def _prepared_one(self) -> _One | None:
-        """:meth:`step_one`'s compiled call, made on first use while ``fused``; None
-        where the compiled step does not apply."""
-        if self._one is not None and self.fused:
-            return self._one
-        arguments = self._compiled_step()
-        if arguments is None:
-            return None
-        if self._one is None:
-            rows, actions, out = np.zeros(1, dtype=np.int64), np.empty((1, 3)), np.empty((1, 5))
-            handed, counts = np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64)
-            kernel, args = self._step_call(rows, actions, out, handed, counts, arguments)
-            self._one = _One(actions[0], out, handed, counts, _jit.entry(kernel, args), args)
-        return self._one
-
-    def step_one(self, action: npt.ArrayLike) -> StepOne:
-        """:meth:`step_rows` of robot 0 alone (a single environment's) with the
-        normalised action (3,), checked as :func:`~spm_pin.envs._actions.check_actions`
-        checks it: the same step, with less work around the compiled kernel (its
-        arguments gathered once and passed to its compiled entry point without
-        numba's dispatch, :func:`spm_pin._jit.entry`; the result read as Python
-        numbers)."""
-        one = self._prepared_one()
-        if one is None:
-            return StepOne.of(self.step_rows(_ROW, check_actions(action, (3,))[None]))
-        action_row, out, handed, counts, call, args = one
-        fill_action(action_row, action)
-        handed[0] = False
-        counts[0] = counts[1] = 0
-        call(*args)
-        assert self.lookup is not None
-        asked, settled = counts.tolist()
-        self.lookup.asked += asked
-        self.lookup.settled += settled
-        if handed[0]:
-            return StepOne.of(self._hand_back(_ROW, action_row[None].copy()))
-        reward, error, fraction, success, unsafe = out[0].tolist()
-        terminated = success != 0.0 or unsafe != 0.0
-        truncated = not terminated and int(self.steps[0]) >= self.settings.max_steps
-        return StepOne(
-            reward, terminated, truncated, error, fraction, success != 0.0, unsafe != 0.0
-        )
-
-    def _record_sources(self) -> tuple[FloatArray, ...]:
-        """The arrays (N, k) of :data:`RECORD`'s entries, in its order."""
-        return tuple(getattr(self, name).reshape(self.num, -1) for _, name, _ in self.RECORD)
-
-    def _prepared_record(self) -> tuple[Any, ...] | None:
-        """:meth:`observe_one`'s compiled call, made on first use; None where it does
-        not apply (observation noise, ``fused`` off, no numba)."""
-        if self.settings.observation_noise != 0.0 or not self.fused:
-            return None
-        if self._record is None:
-            if not _jit.available():
-                return None
-            obs = np.empty((1, OBSERVATION_SIZE), dtype=np.float32)
-            sources = self._record_sources()
-            record = np.empty(sum(source.shape[1] for source in sources))
-            rows = np.zeros(1, dtype=np.int64)
-            speed_limit = float(self.limits.max_speed)
-            args = (
-                rows,
-                self.R,
-                self.goal,
-                self.theta,
-                self.speed,
-                speed_limit,
-                obs,
-                sources,
-                record,
-            )
-            kernel = _jit.kernels(_observe_kernel.KERNELS)["observe_record"]
-            at, parts = 0, []
-            for (key, _, size), source in zip(self.RECORD, sources, strict=True):
-                width = source.shape[1]
-                parts.append((key, slice(at, at + width) if size else at))
-                at += width
-            self._record = (_jit.entry(kernel, args), args, obs[0], record, tuple(parts))
-        return self._record
-
-    def observe_one(
-        self, rng: np.random.Generator
-    ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        """Robot 0's observation (21,) (:meth:`observe`, its noise from ``rng``) and
-        its :data:`RECORD` entries for a step's info (copies, never views): without
-        noise, where the compiled observation applies, in one compiled call
-        (:func:`~spm_pin.envs._observe_kernel.observe_record`, gathered once)."""
-        prepared = self._prepared_record()
-        if prepared is None:
-            obs = self.observe(_ROW, [rng])[0]
-            return obs, {key: getattr(self, name)[0].copy() for key, name, _ in self.RECORD}
-        call, args, obs, record, parts = prepared
-        call(*args)
-        numbers = record.copy()  # the info's arrays: views of this copy, made per step
-        return obs.copy(), {key: numbers[part] for key, part in parts}
 
     def kernel_result(
         self,

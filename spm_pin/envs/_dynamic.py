@@ -213,6 +213,8 @@ class DynamicCore(OrientCore):
             which takes over where the call stops); set False for the loop alone.
     """
 
+    STEP_KERNELS = _dynamic_kernel.KERNELS
+    SINGLE = "DYNAMIC"
     RECORD = (
         *OrientCore.RECORD,
         ("theta_dot", "speed", 3),

@@ -41,6 +41,7 @@ from gymnasium import spaces
 from ..errors import InputError
 from ._core import _ROW, OBSERVATION_SIZE, OrientCore
 from ._render import HumanView, draw_frame
+from ._single import SingleStep
 from .settings import OrientSettings
 
 __all__ = ["RENDER_MODES", "OrientEnv", "settings_from"]
@@ -102,6 +103,7 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
     Attributes:
         settings: The options in force.
         core: The batched state (one robot).
+        single: Its robot's step (:class:`~spm_pin.envs._single.SingleStep`).
     """
 
     metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES), "render_fps": 50}  # noqa: RUF012
@@ -115,6 +117,8 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         self.settings = settings_from(settings, options)
         self.render_mode = check_render_mode(render_mode)
         self.core = OrientCore(self.settings, 1)
+        #: Robot 0 of ``core``, stepped as this environment's robot.
+        self.single = SingleStep(self.core)
         # Box's own type parameter is wider than the arrays it holds.
         self.observation_space = observation_space()  # type: ignore[assignment]
         self.action_space = action_space()  # type: ignore[assignment]
@@ -150,8 +154,7 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         module); the info: ``orientation_error`` [rad], ``step_fraction``, ``success``,
         ``unsafe`` and the core's :data:`~spm_pin.envs._core.OrientCore.RECORD` entries
         (``theta``, ``goal_theta`` and what the dynamic environment adds)."""
-        result = self.core.step_one(action)
-        obs, record = self.core.observe_one(self.np_random)
+        obs, result, record = self.single.step(action, self.np_random)
         info = {
             "orientation_error": result.error,
             "step_fraction": result.fraction,

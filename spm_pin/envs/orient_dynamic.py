@@ -32,6 +32,7 @@ from __future__ import annotations
 from typing import Any
 
 from ._dynamic import DynamicCore, PhysicsSettings, physics_from
+from ._single import SingleStep
 from .orient import OrientEnv
 from .settings import OrientSettings
 
@@ -54,6 +55,7 @@ class OrientDynamicEnv(OrientEnv):
         settings: The task's options in force.
         physics: The physics in force.
         core: The batched state (one robot).
+        single: Its robot's step (:class:`~spm_pin.envs._single.SingleStep`).
     """
 
     core: DynamicCore
@@ -68,3 +70,4 @@ class OrientDynamicEnv(OrientEnv):
         self.physics, rest = physics_from(physics, options)
         super().__init__(settings, render_mode, **rest)
         self.core = DynamicCore(self.settings, 1, self.physics)
+        self.single = SingleStep(self.core)

@@ -1,0 +1,221 @@
+"""Robot 0 of a core stepped as a single environment, with the least work around the
+compiled kernels.
+
+The vector environment steps its robots with :meth:`OrientCore.step_rows
+<spm_pin.envs._core.OrientCore.step_rows>` and a dozen array calls around it; for
+one robot that work, not the physics, would be most of a step. :class:`SingleStep`
+does the same step of robot 0 (the same kernel, the same numbers: the tests compare
+it with the vector environment of one robot, bit for bit) with its calls gathered
+once:
+
+* the step kernel's arguments, and those of the observation and of the info's
+  numbers (:func:`~spm_pin.envs._observe_kernel.observe_record`), are gathered on
+  the first step; the kernels are then called through their compiled entry points
+  (:func:`spm_pin._jit.entry`: no typing of the arguments by numba at each step);
+* where both are the modules' own kernels, one compiled call does both
+  (:mod:`~spm_pin.envs._single_kernel`: the arguments bundled in one numba
+  structure, so a step converts one object instead of about fifty arrays);
+* a float action of shape (3,) is checked and written in Python
+  (:func:`~spm_pin.envs._actions.fill_action`), the results read as Python numbers,
+  the info's arrays as views of one copy made per step.
+
+A robot the kernel hands back is stepped by numpy (:meth:`OrientCore._hand_back
+<spm_pin.envs._core.OrientCore._hand_back>`) and observed afterwards; without the
+compiled step (no cover, no numba, ``fused`` off) it is :meth:`step_rows` of row 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from .. import _jit
+from . import _observe_kernel
+from ._actions import check_actions, fill_action
+from ._core import _ROW, OBSERVATION_SIZE, BoolArray, FloatArray, IntArray, OrientCore, StepOne
+
+__all__ = ["SingleStep"]
+
+ObsArray = npt.NDArray[np.float32]
+
+
+class _One(NamedTuple):
+    """The step kernel's call: its buffers (robot 0's action row, out, handed,
+    counts), the kernel, its entry point and its arguments."""
+
+    action: FloatArray
+    out: FloatArray
+    handed: BoolArray
+    counts: IntArray
+    kernel: Any
+    call: Callable[..., None]
+    args: tuple[Any, ...]
+
+
+class _Record(NamedTuple):
+    """The observation's call: its entry point and arguments, the observation row
+    (21,) and the record it writes, and the record's parts (info key, slice or
+    index)."""
+
+    call: Callable[..., None]
+    args: tuple[Any, ...]
+    obs: ObsArray
+    record: FloatArray
+    parts: tuple[tuple[str, Any], ...]
+
+
+class SingleStep:
+    """Robot 0 of ``core`` stepped and observed as a single environment (see the
+    module).
+
+    Args:
+        core: The core of one robot.
+    """
+
+    def __init__(self, core: OrientCore) -> None:
+        self.core = core
+        self._one: _One | None = None
+        self._record: _Record | None = None
+        #: The whole step's compiled call and its bundle, once made.
+        self._whole: tuple[Callable[..., None], Any] | None = None
+        #: Whether the whole step's call was found not to apply.
+        self._apart = False
+
+    # ---------------------------------------------------------------- the calls
+    def _prepared_one(self) -> _One | None:
+        """The step kernel's call, made on first use while ``fused``; None where the
+        compiled step does not apply."""
+        if self._one is not None and self.core.fused:
+            return self._one
+        core = self.core
+        arguments = core._compiled_step()
+        if arguments is None:
+            return None
+        if self._one is None:
+            rows, actions, out = np.zeros(1, dtype=np.int64), np.empty((1, 3)), np.empty((1, 5))
+            handed, counts = np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64)
+            kernel, args = core._step_call(rows, actions, out, handed, counts, arguments)
+            entry = _jit.entry(kernel, args)
+            self._one = _One(actions[0], out, handed, counts, kernel, entry, args)
+        return self._one
+
+    def _prepared_record(self) -> _Record | None:
+        """The observation's call, made on first use; None where it does not apply
+        (observation noise, ``fused`` off, no numba)."""
+        core = self.core
+        if core.settings.observation_noise != 0.0 or not core.fused:
+            return None
+        if self._record is None:
+            if not _jit.available():
+                return None
+            obs = np.empty((1, OBSERVATION_SIZE), dtype=np.float32)
+            sources = core.record_sources()
+            record = np.empty(sum(source.shape[1] for source in sources))
+            rows = np.zeros(1, dtype=np.int64)
+            speed_limit = float(core.limits.max_speed)
+            state = (core.R, core.goal, core.theta, core.speed)
+            args = (rows, *state, speed_limit, obs, sources, record)
+            kernel = _jit.kernels(_observe_kernel.KERNELS)["observe_record"]
+            at, parts = 0, []
+            for (key, _, size), source in zip(core.RECORD, sources, strict=True):
+                width = source.shape[1]
+                parts.append((key, slice(at, at + width) if size else at))
+                at += width
+            self._record = _Record(_jit.entry(kernel, args), args, obs[0], record, tuple(parts))
+        return self._record
+
+    def _prepared_whole(self) -> tuple[Callable[..., None], Any] | None:
+        """The whole step's compiled call (:mod:`~spm_pin.envs._single_kernel`) and
+        its bundle, made on first use; None where it does not apply (either call
+        missing, or a step kernel other than the module's own)."""
+        one, record = self._prepared_one(), self._prepared_record()
+        if one is None or record is None or self._apart:
+            return None
+        if self._whole is None:
+            compiled = _jit.ready(self.core.STEP_KERNELS)
+            if compiled is None or one.kernel is not compiled["step"]:
+                self._apart = True
+                return None
+            from . import _single_kernel  # imports numba
+
+            family = getattr(_single_kernel, self.core.SINGLE)
+            kernels = _jit.kernels(family)
+            bundle = kernels["make"](one.args, record.args, one.handed)
+            whole = kernels[family[-1].__name__]
+            self._whole = (_jit.entry(whole, (bundle,)), bundle)
+        return self._whole
+
+    # ---------------------------------------------------------------- the step
+    def _start(self, one: _One, action: npt.ArrayLike) -> None:
+        """The action into the step's buffer (checked), the flags cleared."""
+        fill_action(one.action, action)
+        one.handed[0] = False
+        one.counts[0] = one.counts[1] = 0
+
+    def _result(self, one: _One) -> StepOne:
+        """The step's result from the kernel's buffers (a robot handed back: stepped
+        by numpy); the cover's checks counted."""
+        core = self.core
+        assert core.lookup is not None
+        asked, settled = one.counts.tolist()
+        core.lookup.asked += asked
+        core.lookup.settled += settled
+        if one.handed[0]:
+            return StepOne.of(core._hand_back(_ROW, one.action[None].copy()))
+        reward, error, fraction, success, unsafe = one.out[0].tolist()
+        terminated = success != 0.0 or unsafe != 0.0
+        truncated = not terminated and int(core.steps[0]) >= core.settings.max_steps
+        return StepOne(
+            reward, terminated, truncated, error, fraction, success != 0.0, unsafe != 0.0
+        )
+
+    def step_one(self, action: npt.ArrayLike) -> StepOne:
+        """:meth:`~spm_pin.envs._core.OrientCore.step_rows` of robot 0 with the
+        normalised action (3,), checked as
+        :func:`~spm_pin.envs._actions.check_actions` checks it."""
+        one = self._prepared_one()
+        if one is None:
+            return StepOne.of(self.core.step_rows(_ROW, check_actions(action, (3,))[None]))
+        self._start(one, action)
+        one.call(*one.args)
+        return self._result(one)
+
+    def _read(self, record: _Record) -> tuple[ObsArray, dict[str, Any]]:
+        """The observation and the info's numbers from the record (copies)."""
+        numbers = record.record.copy()  # the info's arrays: views of this copy
+        return record.obs.copy(), {key: numbers[part] for key, part in record.parts}
+
+    def observe_one(self, rng: np.random.Generator) -> tuple[ObsArray, dict[str, Any]]:
+        """Robot 0's observation (21,) (:meth:`~spm_pin.envs._core.OrientCore.observe`,
+        its noise from ``rng``) and its ``RECORD`` entries for a step's info (copies,
+        never views of the state)."""
+        record = self._prepared_record()
+        if record is None:
+            core = self.core
+            obs = core.observe(_ROW, [rng])[0]
+            return obs, {key: getattr(core, name)[0].copy() for key, name, _ in core.RECORD}
+        record.call(*record.args)
+        return self._read(record)
+
+    def step(
+        self, action: npt.ArrayLike, rng: np.random.Generator
+    ) -> tuple[ObsArray, StepOne, dict[str, Any]]:
+        """One step of robot 0 with the normalised action (3,): (the observation
+        after it, the step's result, the info's ``RECORD`` entries)."""
+        whole = self._prepared_whole()
+        if whole is None:
+            result = self.step_one(action)
+            obs, numbers = self.observe_one(rng)
+            return obs, result, numbers
+        one, record = self._one, self._record
+        assert one is not None and record is not None
+        self._start(one, action)
+        whole[0](whole[1])
+        result = self._result(one)
+        if one.handed[0]:  # stepped by numpy: observed now
+            record.call(*record.args)
+        obs, numbers = self._read(record)
+        return obs, result, numbers
