@@ -79,8 +79,8 @@ class SingleStep:
         self.core = core
         self._one: _One | None = None
         self._record: _Record | None = None
-        #: The whole step's compiled call and its bundle, once made.
-        self._whole: tuple[Callable[..., None], Any] | None = None
+        #: The whole step's compiled call, its bundle and its summary, once made.
+        self._whole: tuple[Callable[..., None], Any, FloatArray] | None = None
         #: Whether the whole step's call was found not to apply.
         self._apart = False
 
@@ -127,9 +127,9 @@ class SingleStep:
             self._record = _Record(_jit.entry(kernel, args), args, obs[0], record, tuple(parts))
         return self._record
 
-    def _prepared_whole(self) -> tuple[Callable[..., None], Any] | None:
-        """The whole step's compiled call (:mod:`~spm_pin.envs._single_kernel`) and
-        its bundle, made on first use; None where it does not apply (either call
+    def _prepared_whole(self) -> tuple[Callable[..., None], Any, FloatArray] | None:
+        """The whole step's compiled call (:mod:`~spm_pin.envs._single_kernel`), its
+        bundle and its summary, made on first use; None where it does not apply (either call
         missing, or a step kernel other than the module's own)."""
         one, record = self._prepared_one(), self._prepared_record()
         if one is None or record is None or self._apart:
@@ -143,9 +143,11 @@ class SingleStep:
 
             family = getattr(_single_kernel, self.core.SINGLE)
             kernels = _jit.kernels(family)
-            bundle = kernels["make"](one.args, record.args, one.handed)
+            summary = np.zeros(_single_kernel.SUMMARY)
+            parts = (one.out, one.handed, one.counts, self.core.steps, summary)
+            bundle = kernels["make"](one.args, record.args, *parts)
             whole = kernels[family[-1].__name__]
-            self._whole = (_jit.entry(whole, (bundle,)), bundle)
+            self._whole = (_jit.entry(whole, (bundle,)), bundle, summary)
         return self._whole
 
     # ---------------------------------------------------------------- the step
@@ -205,17 +207,30 @@ class SingleStep:
     ) -> tuple[ObsArray, StepOne, dict[str, Any]]:
         """One step of robot 0 with the normalised action (3,): (the observation
         after it, the step's result, the info's ``RECORD`` entries)."""
-        whole = self._prepared_whole()
-        if whole is None:
-            result = self.step_one(action)
-            obs, numbers = self.observe_one(rng)
-            return obs, result, numbers
+        whole = self._whole
+        if whole is None or not self.core.fused:
+            whole = self._prepared_whole()
+            if whole is None:
+                result = self.step_one(action)
+                obs, numbers = self.observe_one(rng)
+                return obs, result, numbers
         one, record = self._one, self._record
         assert one is not None and record is not None
-        self._start(one, action)
+        fill_action(one.action, action)
         whole[0](whole[1])
-        result = self._result(one)
-        if one.handed[0]:  # stepped by numpy: observed now
+        reward, error, fraction, success, unsafe, asked, settled, handed, steps = whole[2].tolist()
+        core = self.core
+        assert core.lookup is not None
+        core.lookup.asked += int(asked)
+        core.lookup.settled += int(settled)
+        if handed:  # stepped by numpy, then observed
+            result = StepOne.of(core._hand_back(_ROW, one.action[None].copy()))
             record.call(*record.args)
-        obs, numbers = self._read(record)
-        return obs, result, numbers
+        else:
+            terminated = success != 0.0 or unsafe != 0.0
+            truncated = not terminated and steps >= core.settings.max_steps
+            result = StepOne(
+                reward, terminated, truncated, error, fraction, success != 0.0, unsafe != 0.0
+            )
+        numbers = record.record.copy()  # the info's arrays: views of this copy
+        return record.obs.copy(), result, {key: numbers[part] for key, part in record.parts}

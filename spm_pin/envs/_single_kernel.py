@@ -9,7 +9,9 @@ once into one numba structure (:class:`SingleCall`, a ``structref`` that holds t
 very arrays of the core, not copies), and :func:`kinematic` or :func:`dynamic` runs,
 in one call, the step of :mod:`~spm_pin.envs._kinematic_kernel` or
 :mod:`~spm_pin.envs._dynamic_kernel` and, unless the robot was handed back to numpy,
-:func:`~spm_pin.envs._observe_kernel.observe_record`: a call converts one object.
+:func:`~spm_pin.envs._observe_kernel.observe_record`, with the numbers Python reads
+after the step gathered into one array (:data:`SUMMARY`): a call converts one
+object.
 
 This module imports numba: it is imported only where :func:`spm_pin._jit.available`.
 The functions are compiled by :func:`spm_pin._jit.kernels` (of :data:`KINEMATIC` or
@@ -27,7 +29,7 @@ from ._dynamic_kernel import step as dynamic_step
 from ._kinematic_kernel import step as kinematic_step
 from ._observe_kernel import observe_record
 
-__all__ = ["DYNAMIC", "KINEMATIC", "SingleCall", "dynamic", "kinematic", "make"]
+__all__ = ["DYNAMIC", "KINEMATIC", "SUMMARY", "SingleCall", "dynamic", "kinematic", "make"]
 
 
 @structref.register
@@ -41,37 +43,73 @@ class SingleCallType(types.StructRef):
 class SingleCall(structref.StructRefProxy):
     """The arguments of a single environment's step and observation, bundled: ``step``
     (the step kernel's arguments), ``observe`` (those of
-    :func:`~spm_pin.envs._observe_kernel.observe_record`) and ``handed`` (the step's
-    hand-back flag, (1,)). Made by :func:`make`."""
+    :func:`~spm_pin.envs._observe_kernel.observe_record`), the step's buffers ``out``
+    (1, 5), ``handed`` (1,) and ``counts`` (2,), the core's ``steps`` and the
+    ``summary`` (:data:`SUMMARY` numbers) written after the step. Made by
+    :func:`make`."""
 
 
-structref.define_proxy(SingleCall, SingleCallType, ["step", "observe", "handed"])  # type: ignore[no-untyped-call]
+FIELDS = ["step", "observe", "out", "handed", "counts", "steps", "summary"]
+structref.define_proxy(SingleCall, SingleCallType, FIELDS)  # type: ignore[no-untyped-call]
+
+#: The numbers of a step's summary, in order: the step's out (reward, orientation
+#: error, step fraction, 1.0 / 0.0 for success and unsafe), the cover's checks asked
+#: and settled, 1.0 / 0.0 for handed back, and the robot's steps in its episode.
+SUMMARY = 9
 
 
-def make(step: tuple[Any, ...], observe: tuple[Any, ...], handed: Any) -> Any:
+def make(
+    step: tuple[Any, ...],
+    observe: tuple[Any, ...],
+    out: Any,
+    handed: Any,
+    counts: Any,
+    steps: Any,
+    summary: Any,
+) -> Any:
     """The :class:`SingleCall` of these arguments (compiled: cached on disk, unlike the
     proxy's own constructor)."""
-    return SingleCall(step, observe, handed)  # type: ignore[no-untyped-call]
+    return SingleCall(step, observe, out, handed, counts, steps, summary)  # type: ignore[no-untyped-call]
+
+
+def _start(call: Any) -> None:
+    """The step's flags and counts cleared."""
+    call.handed[0] = False
+    call.counts[0] = 0
+    call.counts[1] = 0
+
+
+def _finish(call: Any) -> None:
+    """The summary of the step written; the observation and the record, unless the
+    robot was handed back."""
+    summary, out, handed, counts = call.summary, call.out, call.handed, call.counts
+    for j in range(5):
+        summary[j] = out[0, j]
+    summary[5] = counts[0]
+    summary[6] = counts[1]
+    summary[7] = 1.0 if handed[0] else 0.0
+    summary[8] = call.steps[0]
+    if not handed[0]:
+        observe_record(*call.observe)
 
 
 def kinematic(call: Any) -> None:
-    """The kinematic step of ``call.step``, then the observation and record of
-    ``call.observe`` unless the robot was handed back."""
+    """The kinematic step of ``call.step`` (robot 0), then :func:`_finish`."""
+    _start(call)
     kinematic_step(*call.step)
-    if not call.handed[0]:
-        observe_record(*call.observe)
+    _finish(call)
 
 
 def dynamic(call: Any) -> None:
     """:func:`kinematic` with the dynamic step."""
+    _start(call)
     dynamic_step(*call.step)
-    if not call.handed[0]:
-        observe_record(*call.observe)
+    _finish(call)
 
 
 #: The kernels of a kinematic single environment (after the kinematic and the
 #: observation kernels): what :func:`spm_pin._jit.kernels` compiles.
-KINEMATIC = (make, kinematic)
+KINEMATIC = (make, _start, _finish, kinematic)
 #: The kernels of a dynamic single environment (after the dynamic and the observation
 #: kernels).
-DYNAMIC = (make, dynamic)
+DYNAMIC = (make, _start, _finish, dynamic)
