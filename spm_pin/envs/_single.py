@@ -34,7 +34,7 @@ import numpy.typing as npt
 
 from .. import _jit
 from . import _observe_kernel
-from ._actions import check_actions, fill_action
+from ._actions import check_actions, fill_action, is_float_row
 from ._core import _ROW, OBSERVATION_SIZE, BoolArray, FloatArray, IntArray, OrientCore, StepOne
 
 __all__ = ["SingleStep"]
@@ -202,23 +202,42 @@ class SingleStep:
         record.call(*record.args)
         return self._read(record)
 
+    @staticmethod
+    def info(result: StepOne, numbers: dict[str, Any]) -> dict[str, Any]:
+        """A step's info: ``orientation_error`` [rad], ``step_fraction``, ``success``,
+        ``unsafe`` and the ``RECORD`` entries ``numbers``."""
+        return {
+            "orientation_error": result.error,
+            "step_fraction": result.fraction,
+            "success": result.success,
+            "unsafe": result.unsafe,
+            **numbers,
+        }
+
     def step(
         self, action: npt.ArrayLike, rng: np.random.Generator
     ) -> tuple[ObsArray, StepOne, dict[str, Any]]:
         """One step of robot 0 with the normalised action (3,): (the observation
-        after it, the step's result, the info's ``RECORD`` entries)."""
+        after it, the step's result, its info (:meth:`info`))."""
         whole = self._whole
         if whole is None or not self.core.fused:
             whole = self._prepared_whole()
             if whole is None:
                 result = self.step_one(action)
                 obs, numbers = self.observe_one(rng)
-                return obs, result, numbers
+                return obs, result, self.info(result, numbers)
         one, record = self._one, self._record
         assert one is not None and record is not None
-        fill_action(one.action, action)
-        whole[0](whole[1])
-        reward, error, fraction, success, unsafe, asked, settled, handed, steps = whole[2].tolist()
+        if is_float_row(action):  # its values are checked by the compiled call
+            one.action[:] = action
+        else:
+            one.action[:] = check_actions(action, (3,))
+        call, bundle, summary = whole
+        call(bundle)
+        reward, error, fraction, success, unsafe, asked, settled, handed, steps = summary.tolist()
+        if handed < 0.0:  # not finite: refused, nothing moved
+            check_actions(action, (3,))  # raises the InputError
+            raise AssertionError("the compiled step refused a finite action")
         core = self.core
         assert core.lookup is not None
         core.lookup.asked += int(asked)
@@ -226,11 +245,23 @@ class SingleStep:
         if handed:  # stepped by numpy, then observed
             result = StepOne.of(core._hand_back(_ROW, one.action[None].copy()))
             record.call(*record.args)
-        else:
-            terminated = success != 0.0 or unsafe != 0.0
-            truncated = not terminated and steps >= core.settings.max_steps
-            result = StepOne(
-                reward, terminated, truncated, error, fraction, success != 0.0, unsafe != 0.0
-            )
+            obs, numbers = self._read(record)
+            return obs, result, self.info(result, numbers)
         numbers = record.record.copy()  # the info's arrays: views of this copy
-        return record.obs.copy(), result, {key: numbers[part] for key, part in record.parts}
+        terminated = success != 0.0 or unsafe != 0.0
+        info = {
+            "orientation_error": error,
+            "step_fraction": fraction,
+            "success": success != 0.0,
+            "unsafe": unsafe != 0.0,
+        }
+        for key, part in record.parts:
+            info[key] = numbers[part]
+        truncated = not terminated and steps >= core.settings.max_steps
+        return (
+            record.obs.copy(),
+            StepOne(
+                reward, terminated, truncated, error, fraction, info["success"], info["unsafe"]
+            ),
+            info,
+        )

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from numba.core import types
 from numba.experimental import structref
 
@@ -54,7 +55,8 @@ structref.define_proxy(SingleCall, SingleCallType, FIELDS)  # type: ignore[no-un
 
 #: The numbers of a step's summary, in order: the step's out (reward, orientation
 #: error, step fraction, 1.0 / 0.0 for success and unsafe), the cover's checks asked
-#: and settled, 1.0 / 0.0 for handed back, and the robot's steps in its episode.
+#: and settled, 1.0 / 0.0 for handed back (-1.0: an action not finite, refused before
+#: anything moved), and the robot's steps in its episode.
 SUMMARY = 9
 
 
@@ -72,11 +74,17 @@ def make(
     return SingleCall(step, observe, out, handed, counts, steps, summary)  # type: ignore[no-untyped-call]
 
 
-def _start(call: Any) -> None:
-    """The step's flags and counts cleared."""
+def _start(call: Any) -> bool:
+    """The step's flags and counts cleared; False (the summary's hand-back flag -1.0)
+    where the action (written by Python, its shape checked) is not finite."""
+    action = call.step[1]
+    if not (np.isfinite(action[0, 0]) and np.isfinite(action[0, 1]) and np.isfinite(action[0, 2])):
+        call.summary[7] = -1.0
+        return False
     call.handed[0] = False
     call.counts[0] = 0
     call.counts[1] = 0
+    return True
 
 
 def _finish(call: Any) -> None:
@@ -94,17 +102,18 @@ def _finish(call: Any) -> None:
 
 
 def kinematic(call: Any) -> None:
-    """The kinematic step of ``call.step`` (robot 0), then :func:`_finish`."""
-    _start(call)
-    kinematic_step(*call.step)
-    _finish(call)
+    """The kinematic step of ``call.step`` (robot 0), then :func:`_finish`; nothing
+    for an action that is not finite (see :func:`_start`)."""
+    if _start(call):
+        kinematic_step(*call.step)
+        _finish(call)
 
 
 def dynamic(call: Any) -> None:
     """:func:`kinematic` with the dynamic step."""
-    _start(call)
-    dynamic_step(*call.step)
-    _finish(call)
+    if _start(call):
+        dynamic_step(*call.step)
+        _finish(call)
 
 
 #: The kernels of a kinematic single environment (after the kinematic and the

@@ -154,14 +154,7 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         module); the info: ``orientation_error`` [rad], ``step_fraction``, ``success``,
         ``unsafe`` and the core's :data:`~spm_pin.envs._core.OrientCore.RECORD` entries
         (``theta``, ``goal_theta`` and what the dynamic environment adds)."""
-        obs, result, record = self.single.step(action, self.np_random)
-        info = {
-            "orientation_error": result.error,
-            "step_fraction": result.fraction,
-            "success": result.success,
-            "unsafe": result.unsafe,
-            **record,
-        }
+        obs, result, info = self.single.step(action, self.np_random)
         if self.render_mode == "human":
             self.render()
         return obs, result.reward, result.terminated, result.truncated, info
