@@ -233,18 +233,26 @@ def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int
     return R, residual
 
 
+@_jit.inline
+def _home_of(b: Vec, det_a: float, home_sign: float, sign_tol: float) -> bool:
+    """The home sign rule of b_ii = (u_i x w_i) . v_i and det A (rows w_i x v_i):
+    every b_ii > sign_tol, and det A of the sign it has at home (``home_sign``) and
+    larger than sign_tol in size (:func:`_row_terms` gives both)."""
+    same_sign = (det_a > 0.0 and home_sign > 0.0) or (det_a < 0.0 and home_sign < 0.0)
+    home = b[0] > sign_tol and b[1] > sign_tol and b[2] > sign_tol and same_sign
+    return home and abs(det_a) > sign_tol
+
+
 def _home_rule(R: Mat, w: Mat, u: Mat, v0: Mat, home_sign: float, sign_tol: float) -> bool:
-    """The home sign rule: every b_ii = (u_i x w_i) . R v_i0 > sign_tol, and det A of
-    the sign it has at home (``home_sign``) and larger than sign_tol in size."""
+    """The home sign rule (:func:`_home_of`) of the rotation R, b and det A computed
+    as :func:`_row_terms` computes them (the same operations: the same bits)."""
     v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
     b0 = _dot(_cross(u[0], w[0]), v[0])
     b1 = _dot(_cross(u[1], w[1]), v[1])
     b2 = _dot(_cross(u[2], w[2]), v[2])
     a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
     det_a = _dot(a[0], _cross(a[1], a[2]))
-    same_sign = (det_a > 0.0 and home_sign > 0.0) or (det_a < 0.0 and home_sign < 0.0)
-    home = b0 > sign_tol and b1 > sign_tol and b2 > sign_tol and same_sign
-    return home and abs(det_a) > sign_tol
+    return _home_of((b0, b1, b2), det_a, home_sign, sign_tol)
 
 
 @_jit.inline
@@ -392,7 +400,8 @@ def _leg_terms(
 def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, f: Flat, bias: bool) -> Any:
     """Every term of one state (the cos and sin of its input angles, its proximal axes
     w) but friction, as ``ReducedDynamics._terms`` and ``_bias``: (singular, det A, M,
-    c, g, J, Psi, Chi, Psi theta_dot, Chi theta_dot)."""
+    c, g, J, Psi, Chi, Psi theta_dot, Chi theta_dot, b), b_ii = (u_i x w_i) . v_i the
+    diagonal of B (det A and b: what the home sign rule :func:`_home_of` takes)."""
     u, v0 = f[0], f[2]
     frame_inv, dist_inertia, I_p, prox_diag = f[3], f[4], f[5], f[6]
     prox_moment, dist_moment, plat_moment, grav = f[7], f[8], f[9], f[10]
@@ -408,7 +417,7 @@ def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, f: Flat, bias: boo
     zero: Mat = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     zero3: Vec = (0.0, 0.0, 0.0)
     if not abs(det) > singular_det * scale:
-        return True, det, zero, zero3, zero3, zero, zero, zero, zero3, zero3
+        return True, det, zero, zero3, zero3, zero, zero, zero, zero3, zero3, b
     # J = A^-1 B: J[k][j] = cof[j][k] b_j / det
     q = (b[0] / det, b[1] / det, b[2] / det)
     J: Mat = (
@@ -507,7 +516,7 @@ def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, f: Flat, bias: boo
         world = _mat_vec(R, (t1[0] + t2[0], t1[1] + t2[1], t1[2] + t2[2]))
         cp = _mat_t_vec(J, world)
         c = (c0 + cp[0], c1 + cp[1], c2 + cp[2])
-    return False, det, M, c, g, J, Psi, Chi, psi_dot, chi_dot
+    return False, det, M, c, g, J, Psi, Chi, psi_dot, chi_dot, b
 
 
 @_jit.inline
@@ -545,14 +554,15 @@ def _solve_acceleration(M: Mat, c: Vec, g: Vec, friction: Vec, tau: Vec) -> Vec:
 
 @_jit.inline
 def _row_acceleration(cos: Vec, sin: Vec, w: Mat, rate: Vec, tau: Vec, R: Mat, f: Flat) -> Any:
-    """(singular, det A, theta_ddot) of one state (as :func:`_row_terms` takes it)."""
-    singular, det, M, c, g, _, Psi, Chi, psi_dot, chi_dot = _row_terms(
+    """(singular, det A, theta_ddot, b) of one state (as :func:`_row_terms` takes it;
+    det A and b as it gives them)."""
+    singular, det, M, c, g, _, Psi, Chi, psi_dot, chi_dot, b = _row_terms(
         cos, sin, w, rate, R, f, True
     )
     if singular:
-        return True, det, (0.0, 0.0, 0.0)
+        return True, det, (0.0, 0.0, 0.0), b
     friction = _friction(rate, Psi, Chi, psi_dot, chi_dot, f)
-    return False, det, _solve_acceleration(M, c, g, friction, tau)
+    return False, det, _solve_acceleration(M, c, g, friction, tau), b
 
 
 # ------------------------------------------------------------------ batches
@@ -640,7 +650,7 @@ def accelerations(
     for row in range(n):
         cos, sin = _trig(_vec_of(theta[row]))
         w = _proximal(cos, sin, f[0], f[1])
-        bad, d, acc = _row_acceleration(
+        bad, d, acc, _ = _row_acceleration(
             cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), f
         )
         singular[row] = bad
@@ -662,7 +672,7 @@ def _rk4_stage(
     ok, Rs = _home_rotation(w, R, f)
     if not ok:
         return STATUS_ROTATION, rs, rs
-    bad, _, acc = _row_acceleration(cos, sin, w, rs, tau, Rs, f)
+    bad, _, acc, _ = _row_acceleration(cos, sin, w, rs, tau, Rs, f)
     if bad:
         return STATUS_SINGULAR, rs, acc
     return STATUS_OK, rs, acc
@@ -681,26 +691,27 @@ def _row_step(
     rk4: bool,
     f: Flat,
 ) -> Any:
-    """One time step of one robot from a settled rotation R (cos, sin: of theta; w:
-    its proximal axes): (status, theta', rate', theta_ddot)."""
+    """One time step of one robot from a rotation R (cos, sin: of theta; w: its
+    proximal axes): (status, theta', rate', theta_ddot, b, det A), the last two at R
+    (the home sign rule's, :func:`_home_of`: R is settled where it holds)."""
     zero = (0.0, 0.0, 0.0)
-    bad, _, a1 = _row_acceleration(cos, sin, w, rate, tau, R, f)
+    bad, det, a1, b = _row_acceleration(cos, sin, w, rate, tau, R, f)
     if bad:
-        return STATUS_SINGULAR, zero, zero, zero
+        return STATUS_SINGULAR, zero, zero, zero, b, det
     if not rk4:
         r = (rate[0] + h * a1[0], rate[1] + h * a1[1], rate[2] + h * a1[2])
         t = (theta[0] + h * r[0], theta[1] + h * r[1], theta[2] + h * r[2])
-        return STATUS_OK, t, r, a1
+        return STATUS_OK, t, r, a1, b, det
     half = 0.5 * h
     status, r2, a2 = _rk4_stage(theta, rate, rate, a1, half, tau, R, f)
     if status != STATUS_OK:
-        return status, zero, zero, zero
+        return status, zero, zero, zero, b, det
     status, r3, a3 = _rk4_stage(theta, rate, r2, a2, half, tau, R, f)
     if status != STATUS_OK:
-        return status, zero, zero, zero
+        return status, zero, zero, zero, b, det
     status, r4, a4 = _rk4_stage(theta, rate, r3, a3, h, tau, R, f)
     if status != STATUS_OK:
-        return status, zero, zero, zero
+        return status, zero, zero, zero, b, det
     sixth = h / 6.0
     t = (
         theta[0] + sixth * (rate[0] + 2.0 * (r2[0] + r3[0]) + r4[0]),
@@ -712,7 +723,7 @@ def _row_step(
         rate[1] + sixth * (a1[1] + 2.0 * (a2[1] + a3[1]) + a4[1]),
         rate[2] + sixth * (a1[2] + 2.0 * (a2[2] + a3[2]) + a4[2]),
     )
-    return STATUS_OK, t, r, a1
+    return STATUS_OK, t, r, a1, b, det
 
 
 def step(
@@ -742,7 +753,7 @@ def step(
         ok, R = _home_rotation(w, _mat_of(reference[row]), f)
         if not ok:
             return STATUS_ROTATION
-        status, t, r, acc = _row_step(
+        status, t, r, acc, _, _ = _row_step(
             th, cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, f
         )
         if status != STATUS_OK:
@@ -770,6 +781,7 @@ KERNELS = (
     _newton_step,
     _turned,
     _newton,
+    _home_of,
     _home_rule,
     _settle,
     home_rotation_of,

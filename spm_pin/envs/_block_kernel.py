@@ -47,7 +47,7 @@ from ..dynamics._reduced_kernel import (
     Constants,
     Flat,
     _closure,
-    _home_rule,
+    _home_of,
     _newton_step,
     _proximal,
     _row_terms,
@@ -220,21 +220,21 @@ def _turn_pass(S: FloatArray) -> None:
 def _euler_pass(
     S: FloatArray, P: FloatArray, step: int, dt: float, servo: Servo, full: float, f: Flat
 ) -> None:
-    """The home sign rule (:func:`~spm_pin.dynamics._reduced_kernel._home_rule`), the
-    accelerations (no friction), the semi-implicit Euler step and the records; a robot
-    whose step is not taken keeps its state and has its steps done set."""
-    u, v0 = f[0], f[2]
+    """The home sign rule (:func:`~spm_pin.dynamics._reduced_kernel._home_of`, of the
+    terms' b and det A), the accelerations (no friction), the semi-implicit Euler step
+    and the records; a robot whose step is not taken keeps its state and has its
+    steps done set."""
     home_sign, sign_tol, tol = f[16], f[17], f[19]
     stall, no_load = servo[2], servo[3]
     base = (step + 1) * 3 * BLOCK
     for i in range(BLOCK):
         R, w = _ldm(S, _RR, i), _ldm(S, _WW, i)
-        home = _home_rule(R, w, u, v0, home_sign, sign_tol)
         residual = _ld(S, _RES, i)
-        settled = math.isfinite(residual) and residual <= tol and home
         th, sp, tau = _ld3(S, _TH, i), _ld3(S, _SP, i), _ld3(S, _TAU, i)
         cos, sin = _ld3(S, _CS, i), _ld3(S, _CS + 3, i)
-        singular, _, M, c, g, _, _, _, _, _ = _row_terms(cos, sin, w, sp, R, f, True)
+        singular, det, M, c, g, _, _, _, _, _, b = _row_terms(cos, sin, w, sp, R, f, True)
+        home = _home_of(b, det, home_sign, sign_tol)  # b, det A: as _home_rule's
+        settled = math.isfinite(residual) and residual <= tol and home
         acc = _solve_acceleration(M, c, g, (0.0, 0.0, 0.0), tau)
         r = (sp[0] + dt * acc[0], sp[1] + dt * acc[1], sp[2] + dt * acc[2])
         t = (th[0] + dt * r[0], th[1] + dt * r[1], th[2] + dt * r[2])

@@ -56,7 +56,8 @@ from ..dynamics._reduced_kernel import (
     STATUS_OK,
     Constants,
     Flat,
-    _home_rotation,
+    _home_of,
+    _newton,
     _proximal,
     _row_step,
     _trig,
@@ -186,11 +187,14 @@ def _physics_step(
         return False, th, sp, R, tau
     cos, sin = _trig(th)
     w = _proximal(cos, sin, f[0], f[1])
-    settled, rotation = _home_rotation(w, R, f)
-    if not settled:
+    # the warm start settles where Newton's residual is within the tolerance and the
+    # home sign rule holds (:func:`_home_rotation`); the rule is taken from the
+    # step's own terms at the rotation (the same numbers, computed once)
+    rotation, residual = _newton(R, w, f[2], f[13], 0.1 * f[19], int(f[20]))
+    if not (math.isfinite(residual) and residual <= f[19]):
         return False, th, sp, R, tau
-    status, t, r, _ = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, f)
-    if status != STATUS_OK:
+    status, t, r, _, b, det = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, f)
+    if not _home_of(b, det, f[16], f[17]) or status != STATUS_OK:
         return False, th, sp, R, tau
     return True, t, r, rotation, tau
 
