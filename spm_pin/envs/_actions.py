@@ -14,7 +14,7 @@ import numpy.typing as npt
 
 from ..errors import InputError
 
-__all__ = ["check_actions", "fill_action", "is_float_row"]
+__all__ = ["check_actions", "fill_action"]
 
 #: Actions checked in Python rather than by numpy (a single environment's three).
 _FEW = 8
@@ -52,15 +52,9 @@ def fill_action(row: npt.NDArray[np.float64], action: npt.ArrayLike) -> None:
     it (InputError, ``row`` left as it was, for a wrong shape or a value that is not
     finite): a float array of shape (3,) is copied at once, anything else checked
     first."""
-    if is_float_row(action):
-        x, y, z = action.tolist()  # type: ignore[union-attr]
+    if type(action) is np.ndarray and action.shape == (3,) and action.dtype.kind == "f":
+        x, y, z = action.tolist()
         if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
             row[0], row[1], row[2] = x, y, z
             return
     row[:] = check_actions(action, (3,))
-
-
-def is_float_row(action: npt.ArrayLike) -> bool:
-    """Whether ``action`` is a float array of shape (3,) (what a single environment's
-    compiled step takes as it is, checking its values itself)."""
-    return type(action) is np.ndarray and action.shape == (3,) and action.dtype.kind == "f"

@@ -34,7 +34,7 @@ import numpy.typing as npt
 
 from .. import _jit
 from . import _observe_kernel
-from ._actions import check_actions, fill_action, is_float_row
+from ._actions import check_actions, fill_action
 from ._core import _ROW, OBSERVATION_SIZE, BoolArray, FloatArray, IntArray, OrientCore, StepOne
 
 __all__ = ["SingleStep"]
@@ -83,6 +83,7 @@ class SingleStep:
         self._whole: tuple[Callable[..., None], Any, FloatArray] | None = None
         #: Whether the whole step's call was found not to apply.
         self._apart = False
+        self._max_steps = core.settings.max_steps
 
     # ---------------------------------------------------------------- the calls
     def _prepared_one(self) -> _One | None:
@@ -216,20 +217,21 @@ class SingleStep:
 
     def step(
         self, action: npt.ArrayLike, rng: np.random.Generator
-    ) -> tuple[ObsArray, StepOne, dict[str, Any]]:
-        """One step of robot 0 with the normalised action (3,): (the observation
-        after it, the step's result, its info (:meth:`info`))."""
+    ) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
+        """One step of robot 0 with the normalised action (3,): what a Gymnasium
+        step returns (the observation after it, the reward, terminated, truncated, the
+        info (:meth:`info`)); ``rng``: the observation noise's generator."""
         whole = self._whole
         if whole is None or not self.core.fused:
             whole = self._prepared_whole()
             if whole is None:
                 result = self.step_one(action)
                 obs, numbers = self.observe_one(rng)
-                return obs, result, self.info(result, numbers)
+                return self._gymnasium(obs, result, numbers)
         one, record = self._one, self._record
         assert one is not None and record is not None
-        if is_float_row(action):  # its values are checked by the compiled call
-            one.action[:] = action
+        if type(action) is np.ndarray and action.shape == (3,) and action.dtype.kind == "f":
+            one.action[:] = action  # its values are checked by the compiled call
         else:
             one.action[:] = check_actions(action, (3,))
         call, bundle, summary = whole
@@ -238,17 +240,16 @@ class SingleStep:
         if handed < 0.0:  # not finite: refused, nothing moved
             check_actions(action, (3,))  # raises the InputError
             raise AssertionError("the compiled step refused a finite action")
-        core = self.core
-        assert core.lookup is not None
-        core.lookup.asked += int(asked)
-        core.lookup.settled += int(settled)
+        lookup = self.core.lookup
+        assert lookup is not None
+        lookup.asked += int(asked)
+        lookup.settled += int(settled)
         if handed:  # stepped by numpy, then observed
-            result = StepOne.of(core._hand_back(_ROW, one.action[None].copy()))
+            result = StepOne.of(self.core._hand_back(_ROW, one.action[None].copy()))
             record.call(*record.args)
             obs, numbers = self._read(record)
-            return obs, result, self.info(result, numbers)
+            return self._gymnasium(obs, result, numbers)
         numbers = record.record.copy()  # the info's arrays: views of this copy
-        terminated = success != 0.0 or unsafe != 0.0
         info = {
             "orientation_error": error,
             "step_fraction": fraction,
@@ -257,11 +258,13 @@ class SingleStep:
         }
         for key, part in record.parts:
             info[key] = numbers[part]
-        truncated = not terminated and steps >= core.settings.max_steps
-        return (
-            record.obs.copy(),
-            StepOne(
-                reward, terminated, truncated, error, fraction, info["success"], info["unsafe"]
-            ),
-            info,
-        )
+        terminated = success != 0.0 or unsafe != 0.0
+        truncated = not terminated and steps >= self._max_steps
+        return record.obs.copy(), reward, terminated, truncated, info
+
+    def _gymnasium(
+        self, obs: ObsArray, result: StepOne, numbers: dict[str, Any]
+    ) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
+        """What a Gymnasium step returns, from the step's parts."""
+        info = self.info(result, numbers)
+        return obs, result.reward, result.terminated, result.truncated, info

@@ -154,10 +154,11 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         module); the info: ``orientation_error`` [rad], ``step_fraction``, ``success``,
         ``unsafe`` and the core's :data:`~spm_pin.envs._core.OrientCore.RECORD` entries
         (``theta``, ``goal_theta`` and what the dynamic environment adds)."""
-        obs, result, info = self.single.step(action, self.np_random)
+        rng = self._np_random  # the property's check, once
+        out = self.single.step(action, self.np_random if rng is None else rng)
         if self.render_mode == "human":
             self.render()
-        return obs, result.reward, result.terminated, result.truncated, info
+        return out
 
     def render(self) -> npt.NDArray[np.uint8] | None:
         """The picture of the robot (``rgb_array``) or the meshcat scene (``human``)."""
