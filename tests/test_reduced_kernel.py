@@ -24,6 +24,7 @@ from spm_pin import _jit
 from spm_pin import dynamics as D
 from spm_pin.dynamics import _reduced_kernel
 from spm_pin.dynamics import reduced as reduced_module
+from spm_pin.kinematics.fk import satisfies_home_rule
 
 pytest.importorskip("numba")  # the test extra installs it; without it nothing compiles
 
@@ -300,3 +301,34 @@ def test_changed_gravity_armature_and_friction_are_seen() -> None:
     a, b = fast.terms(theta, theta_dot), slow.terms(theta, theta_dot)
     _close(a.g, b.g, TOL["terms"], relative=True)
     assert not np.any(a.friction) and not np.any(b.friction)
+
+
+def test_the_home_rule_from_the_terms_is_the_rule_of_every_assembly_mode() -> None:
+    """The physics step reads the home sign rule from its terms (b and det A of
+    ``_row_terms``, ``_home_of``) instead of computing it again (``_home_rule``): over
+    every assembly mode of seeded states (forward_kinematics_all), both give numpy's
+    ``satisfies_home_rule`` of numpy's b and det A, and the terms' b and det A are
+    the rule's own numbers, bit for bit."""
+    fast, _ = _pair("upright")
+    table = _jit.kernels(_reduced_kernel.KERNELS)
+    design = fast.design
+    f = table["flat"](fast._constants())
+    home_sign, sign_tol = f[16], f[17]
+    theta, rate, _ = _states(12, SEED + 7)
+    modes = spm.forward_kinematics_all(theta, design)
+    seen = set()
+    for n in range(theta.shape[0]):
+        cos, sin = table["_trig"](tuple(theta[n]))
+        w = table["_proximal"](cos, sin, f[0], f[1])
+        for slot in np.flatnonzero(modes.valid[n]):
+            R = tuple(tuple(row) for row in modes.R[n, slot])
+            out = table["_row_terms"](cos, sin, w, tuple(rate[n]), R, f, True)
+            det, b = out[1], out[10]
+            truth = bool(
+                satisfies_home_rule(modes.b[n, slot], np.asarray(modes.det_a[n, slot]), design)
+            )
+            rule = table["_home_rule"](R, w, f[0], f[2], home_sign, sign_tol)
+            assert table["_home_of"](b, det, home_sign, sign_tol) == rule == truth
+            np.testing.assert_allclose(b, modes.b[n, slot], rtol=0.0, atol=1e-12)
+            seen.add(truth)
+    assert seen == {True, False}
