@@ -307,3 +307,27 @@ def test_bitmaps_and_searched_levels_mix(safe: SafeSet, cover_path: Path) -> Non
             assert lookup._arrays[3].size == searched
             lookup.compiled = True
             np.testing.assert_array_equal(lookup.covered(points), expected)
+
+
+def test_tracked_counts_are_counted_once(safe: SafeSet, cover_path: Path) -> None:
+    """A compiled step's counts, tracked by the lookup, add to ``asked`` and
+    ``settled`` from then on (not what they held before), alongside the lookups of
+    numpy; setting the totals (as the core does to hide its own lookups) keeps them."""
+    lookup = SafeLookup.from_file(safe, cover_path)
+    rng = np.random.default_rng(5)
+    theta = rng.uniform(-math.pi, math.pi, size=(40, 3))
+    lookup.compiled = False
+    lookup.covered(theta)
+    asked, settled = lookup.asked, lookup.settled
+    assert asked == 40 and 0 < settled < 40
+    counts = np.array([7, 3], dtype=np.int64)  # held before tracking: not counted
+    lookup.track(counts)
+    assert (lookup.asked, lookup.settled) == (asked, settled)
+    counts += [5, 2]  # as a compiled step adds to them
+    assert (lookup.asked, lookup.settled) == (asked + 5, settled + 2)
+    found = lookup.covered(theta[:10])
+    assert lookup.asked == asked + 5 + 10
+    assert lookup.settled == settled + 2 + int(np.count_nonzero(found))
+    lookup.asked, lookup.settled = 100, 50
+    counts += [1, 1]
+    assert (lookup.asked, lookup.settled) == (101, 51)

@@ -49,8 +49,6 @@ class SafeLookup:
 
     Attributes:
         safe_set: The cover's safe set.
-        asked: Input angles looked up so far.
-        settled: Of those, how many lay in a covered cell.
     """
 
     def __init__(self, cover: SafeCover) -> None:
@@ -66,13 +64,41 @@ class SafeLookup:
             size = n * 2**level
             keys = np.sort(rows[:, 1] * size + rows[:, 2])
             self._levels.append((self.root_step_deg / 2**level, size, keys))
-        self.asked = 0
-        self.settled = 0
+        self._asked = 0
+        self._settled = 0
+        #: Counters (2,) (asked, settled) that compiled steps add to (:meth:`track`).
+        self._tracked: list[npt.NDArray[np.int64]] = []
         #: Look up with the compiled kernel where numba is installed (the same
         #: answers as numpy); False: numpy always.
         self.compiled = True
         self._kernel: Any = None
         self._arrays: Any = None
+
+    def track(self, counts: npt.NDArray[np.int64]) -> None:
+        """Count the lookups that a compiled step adds to ``counts`` (2,) (asked,
+        settled; never reset) in :attr:`asked` and :attr:`settled` from now on (what
+        they hold now is counted already)."""
+        self._asked -= int(counts[0])
+        self._settled -= int(counts[1])
+        self._tracked.append(counts)
+
+    @property
+    def asked(self) -> int:
+        """Input angles looked up so far."""
+        return self._asked + sum(int(counts[0]) for counts in self._tracked)
+
+    @asked.setter
+    def asked(self, value: int) -> None:
+        self._asked = value - sum(int(counts[0]) for counts in self._tracked)
+
+    @property
+    def settled(self) -> int:
+        """Of :attr:`asked`, how many lay in a covered cell."""
+        return self._settled + sum(int(counts[1]) for counts in self._tracked)
+
+    @settled.setter
+    def settled(self, value: int) -> None:
+        self._settled = value - sum(int(counts[1]) for counts in self._tracked)
 
     @classmethod
     def from_file(cls, safe_set: SafeSet, path: str | os.PathLike[str]) -> SafeLookup:
@@ -169,8 +195,8 @@ class SafeLookup:
             angles = np.ascontiguousarray(theta, dtype=np.float64).reshape(-1, 3)
             found = np.empty(angles.shape[0], dtype=bool)
             kernel(angles, self._arrays, found)
-            self.asked += int(found.size)
-            self.settled += int(np.count_nonzero(found))
+            self._asked += int(found.size)
+            self._settled += int(np.count_nonzero(found))
             return found
         return self._covered_numpy(theta)
 
@@ -208,6 +234,6 @@ class SafeLookup:
             ).astype(np.int64)
             at = np.minimum(np.searchsorted(keys, key), keys.size - 1)
             result[rows[keys[at] == key]] = True
-        self.asked += int(result.size)
-        self.settled += int(np.count_nonzero(result))
+        self._asked += int(result.size)
+        self._settled += int(np.count_nonzero(result))
         return result

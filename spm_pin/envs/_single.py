@@ -100,6 +100,8 @@ class SingleStep:
             handed, counts = np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64)
             kernel, args = core._step_call(rows, actions, out, handed, counts, arguments)
             entry = _jit.entry(kernel, args)
+            assert core.lookup is not None  # a compiled step has a cover
+            core.lookup.track(counts)  # the kernel adds to counts, never reset
             self._one = _One(actions[0], out, handed, counts, kernel, entry, args)
         return self._one
 
@@ -145,7 +147,7 @@ class SingleStep:
             family = getattr(_single_kernel, self.core.SINGLE)
             kernels = _jit.kernels(family)
             summary = np.zeros(_single_kernel.SUMMARY)
-            parts = (one.out, one.handed, one.counts, self.core.steps, summary)
+            parts = (one.out, one.handed, self.core.steps, summary)
             bundle = kernels["make"](one.args, record.args, *parts)
             whole = kernels[family[-1].__name__]
             self._whole = (_jit.entry(whole, (bundle,)), bundle, summary)
@@ -153,19 +155,15 @@ class SingleStep:
 
     # ---------------------------------------------------------------- the step
     def _start(self, one: _One, action: npt.ArrayLike) -> None:
-        """The action into the step's buffer (checked), the flags cleared."""
+        """The action into the step's buffer (checked), the flag cleared."""
         fill_action(one.action, action)
         one.handed[0] = False
-        one.counts[0] = one.counts[1] = 0
 
     def _result(self, one: _One) -> StepOne:
         """The step's result from the kernel's buffers (a robot handed back: stepped
-        by numpy); the cover's checks counted."""
+        by numpy; the cover's checks are counted by the lookup, which tracks the
+        kernel's counts)."""
         core = self.core
-        assert core.lookup is not None
-        asked, settled = one.counts.tolist()
-        core.lookup.asked += asked
-        core.lookup.settled += settled
         if one.handed[0]:
             return StepOne.of(core._hand_back(_ROW, one.action[None].copy()))
         reward, error, fraction, success, unsafe = one.out[0].tolist()
@@ -236,14 +234,10 @@ class SingleStep:
             one.action[:] = check_actions(action, (3,))
         call, bundle, summary = whole
         call(bundle)
-        reward, error, fraction, success, unsafe, asked, settled, handed, steps = summary.tolist()
+        reward, error, fraction, success, unsafe, handed, steps = summary.tolist()
         if handed < 0.0:  # not finite: refused, nothing moved
             check_actions(action, (3,))  # raises the InputError
             raise AssertionError("the compiled step refused a finite action")
-        lookup = self.core.lookup
-        assert lookup is not None
-        lookup.asked += int(asked)
-        lookup.settled += int(settled)
         if handed:  # stepped by numpy, then observed
             result = StepOne.of(self.core._hand_back(_ROW, one.action[None].copy()))
             record.call(*record.args)

@@ -45,19 +45,19 @@ class SingleCall(structref.StructRefProxy):
     """The arguments of a single environment's step and observation, bundled: ``step``
     (the step kernel's arguments), ``observe`` (those of
     :func:`~spm_pin.envs._observe_kernel.observe_record`), the step's buffers ``out``
-    (1, 5), ``handed`` (1,) and ``counts`` (2,), the core's ``steps`` and the
-    ``summary`` (:data:`SUMMARY` numbers) written after the step. Made by
-    :func:`make`."""
+    (1, 5) and ``handed`` (1,), the core's ``steps`` and the ``summary``
+    (:data:`SUMMARY` numbers) written after the step. Made by :func:`make`."""
 
 
-FIELDS = ["step", "observe", "out", "handed", "counts", "steps", "summary"]
+FIELDS = ["step", "observe", "out", "handed", "steps", "summary"]
 structref.define_proxy(SingleCall, SingleCallType, FIELDS)  # type: ignore[no-untyped-call]
 
 #: The numbers of a step's summary, in order: the step's out (reward, orientation
-#: error, step fraction, 1.0 / 0.0 for success and unsafe), the cover's checks asked
-#: and settled, 1.0 / 0.0 for handed back (-1.0: an action not finite, refused before
-#: anything moved), and the robot's steps in its episode.
-SUMMARY = 9
+#: error, step fraction, 1.0 / 0.0 for success and unsafe), 1.0 / 0.0 for handed back
+#: (-1.0: an action not finite, refused before anything moved), and the robot's steps
+#: in its episode. (The cover's checks are added to counts that the lookup tracks:
+#: :meth:`~spm_pin.envs._safe_lookup.SafeLookup.track`.)
+SUMMARY = 7
 
 
 def make(
@@ -65,38 +65,33 @@ def make(
     observe: tuple[Any, ...],
     out: Any,
     handed: Any,
-    counts: Any,
     steps: Any,
     summary: Any,
 ) -> Any:
     """The :class:`SingleCall` of these arguments (compiled: cached on disk, unlike the
     proxy's own constructor)."""
-    return SingleCall(step, observe, out, handed, counts, steps, summary)  # type: ignore[no-untyped-call]
+    return SingleCall(step, observe, out, handed, steps, summary)  # type: ignore[no-untyped-call]
 
 
 def _start(call: Any) -> bool:
-    """The step's flags and counts cleared; False (the summary's hand-back flag -1.0)
+    """The step's hand-back flag cleared; False (the summary's hand-back flag -1.0)
     where the action (written by Python, its shape checked) is not finite."""
     action = call.step[1]
     if not (np.isfinite(action[0, 0]) and np.isfinite(action[0, 1]) and np.isfinite(action[0, 2])):
-        call.summary[7] = -1.0
+        call.summary[5] = -1.0
         return False
     call.handed[0] = False
-    call.counts[0] = 0
-    call.counts[1] = 0
     return True
 
 
 def _finish(call: Any) -> None:
     """The summary of the step written; the observation and the record, unless the
     robot was handed back."""
-    summary, out, handed, counts = call.summary, call.out, call.handed, call.counts
+    summary, out, handed = call.summary, call.out, call.handed
     for j in range(5):
         summary[j] = out[0, j]
-    summary[5] = counts[0]
-    summary[6] = counts[1]
-    summary[7] = 1.0 if handed[0] else 0.0
-    summary[8] = call.steps[0]
+    summary[5] = 1.0 if handed[0] else 0.0
+    summary[6] = call.steps[0]
     if not handed[0]:
         observe_record(*call.observe)
 
