@@ -116,13 +116,13 @@ class OrientCore:
         num: Number of robots.
     """
 
-    #: What a single environment's step adds to its info from the state of robot 0,
-    #: in order: (info key, state attribute, size: 3 for an array (3,), 0 for a
-    #: number) (:class:`~spm_pin.envs._single.SingleStep`).
     #: The kernels of the compiled step (:meth:`_step_call`'s ``step``), and the name
     #: of the whole single step's family in :mod:`~spm_pin.envs._single_kernel`.
     STEP_KERNELS: tuple[Callable[..., Any], ...] = _kinematic_kernel.KERNELS
     SINGLE = "KINEMATIC"
+    #: What a single environment's step adds to its info from the state of robot 0,
+    #: in order: (info key, state attribute, size: 3 for an array (3,), 0 for a
+    #: number) (:class:`~spm_pin.envs._single.SingleStep`).
     RECORD: tuple[tuple[str, str, int], ...] = (
         ("theta", "theta", 3),
         ("goal_theta", "goal_theta", 3),

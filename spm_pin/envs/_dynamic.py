@@ -55,8 +55,18 @@ __all__ = ["ACTUATIONS", "INTEGRATORS", "DynamicCore", "PhysicsSettings", "physi
 ACTUATIONS = ("position", "torque")
 #: The integrators of :meth:`~spm_pin.dynamics.ReducedDynamics.step`.
 INTEGRATORS = ("euler", "rk4")
+#: What :meth:`DynamicCore.extra_info` adds to a step's info, as
+#: :attr:`OrientCore.RECORD <spm_pin.envs._core.OrientCore.RECORD>` gives it: (info
+#: key, state attribute, size).
+_EXTRA = (
+    ("theta_dot", "speed", 3),
+    ("servo_goal", "servo_goal", 3),
+    ("torque", "torque", 3),
+    ("torque_speed", "torque_speed", 3),
+    ("servo_load", "servo_load", 0),
+)
 #: The keys :meth:`DynamicCore.extra_info` adds to a step's info.
-EXTRA_INFO = ("theta_dot", "servo_goal", "torque", "torque_speed", "servo_load")
+EXTRA_INFO = tuple(key for key, _, _ in _EXTRA)
 #: Fewest rows in a chunk of a period shared among threads (below, handing the work
 #: to a thread costs more than it saves).
 THREADED_ROWS = 256
@@ -215,14 +225,7 @@ class DynamicCore(OrientCore):
 
     STEP_KERNELS = _dynamic_kernel.KERNELS
     SINGLE = "DYNAMIC"
-    RECORD = (
-        *OrientCore.RECORD,
-        ("theta_dot", "speed", 3),
-        ("servo_goal", "servo_goal", 3),
-        ("torque", "torque", 3),
-        ("torque_speed", "torque_speed", 3),
-        ("servo_load", "servo_load", 0),
-    )
+    RECORD = (*OrientCore.RECORD, *_EXTRA)
 
     def __init__(self, settings: OrientSettings, num: int, physics: PhysicsSettings) -> None:
         super().__init__(settings, num)
@@ -712,12 +715,5 @@ class DynamicCore(OrientCore):
         ``torque_speed`` [rad/s] they were applied at, and the largest ``servo_load``
         of the period (<= 1 inside the torque-speed envelope). Copies, never views."""
         if isinstance(rows, np.ndarray):  # indexing by an array copies
-            arrays = (self.speed, self.servo_goal, self.torque, self.torque_speed, self.servo_load)
-            return {key: array[rows] for key, array in zip(EXTRA_INFO, arrays, strict=True)}
-        return {  # one row (a single env's every step): its values, copied
-            "theta_dot": self.speed[rows].copy(),
-            "servo_goal": self.servo_goal[rows].copy(),
-            "torque": self.torque[rows].copy(),
-            "torque_speed": self.torque_speed[rows].copy(),
-            "servo_load": self.servo_load[rows].copy(),
-        }
+            return {key: getattr(self, name)[rows] for key, name, _ in _EXTRA}
+        return {key: getattr(self, name)[rows].copy() for key, name, _ in _EXTRA}

@@ -15,9 +15,13 @@ once:
 * where both are the modules' own kernels, one compiled call does both
   (:mod:`~spm_pin.envs._single_kernel`: the arguments bundled in one numba
   structure, so a step converts one object instead of about fifty arrays);
-* a float action of shape (3,) is checked and written in Python
-  (:func:`~spm_pin.envs._actions.fill_action`), the results read as Python numbers,
-  the info's arrays as views of one copy made per step.
+* a float action of shape (3,) is written as it is and its values checked by the
+  whole step's compiled call (:func:`~spm_pin.envs._actions.fill_action` in Python
+  where the calls are apart; anything else by
+  :func:`~spm_pin.envs._actions.check_actions` first); the results are read as
+  Python numbers from one array, the info's arrays as views of one copy made per
+  step; the cover's checks are counted by the lookup, which tracks the kernel's
+  counters (:meth:`~spm_pin.envs._safe_lookup.SafeLookup.track`).
 
 A robot the kernel hands back is stepped by numpy (:meth:`OrientCore._hand_back
 <spm_pin.envs._core.OrientCore._hand_back>`) and observed afterwards; without the
