@@ -172,7 +172,7 @@ class SingleStep:
             return StepOne.of(core._hand_back(_ROW, one.action[None].copy()))
         reward, error, fraction, success, unsafe = one.out[0].tolist()
         terminated = success != 0.0 or unsafe != 0.0
-        truncated = not terminated and int(core.steps[0]) >= core.settings.max_steps
+        truncated = not terminated and int(core.steps[0]) >= self._max_steps
         return StepOne(
             reward, terminated, truncated, error, fraction, success != 0.0, unsafe != 0.0
         )
