@@ -322,7 +322,8 @@ def test_the_home_rule_from_the_terms_is_the_rule_of_every_assembly_mode() -> No
         w = table["_proximal"](cos, sin, f[0], f[1])
         for slot in np.flatnonzero(modes.valid[n]):
             R = tuple(tuple(row) for row in modes.R[n, slot])
-            out = table["_row_terms"](cos, sin, w, tuple(rate[n]), R, f, True)
+            v = table["_mat_vecs"](R, f[2])
+            out = table["_row_terms"](cos, sin, w, v, tuple(rate[n]), R, f, True)
             det, b = out[1], out[10]
             truth = bool(
                 satisfies_home_rule(modes.b[n, slot], np.asarray(modes.det_a[n, slot]), design)

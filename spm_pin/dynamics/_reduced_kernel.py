@@ -18,15 +18,14 @@ the rows of the batch:
 
 The constants (:data:`Constants`, built by ``ReducedDynamics``) travel as one tuple
 of arrays and floats; each kernel turns them once into floats and tuples
-(:func:`flat`), which the callees on the hot path take, inlined into the compiled
-callers (:func:`spm_pin._jit.inline`): a loop over robots then reads no array of
-constants (the vectorised loops of :mod:`spm_pin.envs._block_kernel` need that). The
-3-vector algebra is :mod:`spm_pin.dynamics._tuple_kernel`. Per state, cos and sin of
-the input angles and the proximal axes are computed once and shared by the rotation,
-the terms and gravity. The mass
-and bias terms of a distal link use its two axes in its own frame (x = D^T u_i,
-y = D^T w_i) rather than its whole rotation D: W^T D I D^T W is a sum of three
-scalars times outer products of e_i and Psi_i.
+(:func:`flat`), which the hot callees take, inlined into the compiled callers
+(:func:`spm_pin._jit.inline`): a loop over robots reads no array of constants (as the
+vectorised loops of :mod:`spm_pin.envs._block_kernel` need). The 3-vector algebra is
+:mod:`spm_pin.dynamics._tuple_kernel`. Per state, cos and sin of the input angles,
+the proximal axes and the distal axes (from Newton's last check) are computed once
+and shared by the rotation, the terms and gravity. The mass and bias terms of a
+distal link use its two axes in its own frame (x = D^T u_i, y = D^T w_i) rather than
+its whole rotation D: W^T D I D^T W is a sum of three scalars times outer products.
 
 The results agree with the numpy path to rounding (the sums are taken in another
 order; ``tests/test_reduced_kernel`` compares them), not bit for bit. Nothing here
@@ -53,6 +52,7 @@ from ._tuple_kernel import (
     _mat_t_mul,
     _mat_t_vec,
     _mat_vec,
+    _mat_vecs,
     _put_mat,
     _rotate,
     _scale,
@@ -107,29 +107,20 @@ def flat(k: Constants) -> Flat:
     fi, di, pm, dm = k[3], k[4], k[7], k[8]
     viscous, coulomb, prox, armature = k[11], k[12], k[6], k[21]
     return (
-        _mat_of(k[0]),
-        _mat_of(k[1]),
-        _mat_of(k[2]),
+        _mat_of(k[0]), _mat_of(k[1]), _mat_of(k[2]),
         (_mat_of(fi[0]), _mat_of(fi[1]), _mat_of(fi[2])),
         (_mat_of(di[0]), _mat_of(di[1]), _mat_of(di[2])),
         _mat_of(k[5]),
         (prox[0] + armature[0], prox[1] + armature[1], prox[2] + armature[2]),
         (_vec_of(pm[0]), _vec_of(pm[1]), _vec_of(pm[2])),
         (_vec_of(dm[0]), _vec_of(dm[1]), _vec_of(dm[2])),
-        _vec_of(k[9]),
-        _vec_of(k[10]),
+        _vec_of(k[9]), _vec_of(k[10]),
         (viscous[0], viscous[1], viscous[2], viscous[3], viscous[4], viscous[5],
          viscous[6], viscous[7], viscous[8]),
         (coulomb[0], coulomb[1], coulomb[2], coulomb[3], coulomb[4], coulomb[5],
          coulomb[6], coulomb[7], coulomb[8]),
-        float(k[13]),
-        float(k[14]),
-        float(k[15]),
-        float(k[16]),
-        float(k[17]),
-        float(k[18]),
-        float(k[19]),
-        int(k[20]),
+        float(k[13]), float(k[14]), float(k[15]), float(k[16]), float(k[17]), float(k[18]),
+        float(k[19]), int(k[20]),
     )  # fmt: skip
 
 
@@ -186,7 +177,7 @@ def _cofactors(a: Mat) -> Mat:
 def _closure(R: Mat, w: Mat, v0: Mat, cos_a2: float) -> tuple[Mat, Vec, float]:
     """(v, r, residual) of the rotation R: the distal axes v_i = R v_i0, the closures
     r_i = w_i . v_i - cos a2 and max |r_i| (NaN when an r_i is NaN)."""
-    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+    v = _mat_vecs(R, v0)
     r = (_dot(w[0], v[0]) - cos_a2, _dot(w[1], v[1]) - cos_a2, _dot(w[2], v[2]) - cos_a2)
     residual = max(abs(r[0]), abs(r[1]), abs(r[2]))
     if math.isnan(r[0]) or math.isnan(r[1]) or math.isnan(r[2]):
@@ -222,15 +213,18 @@ def _turned(R: Mat, axis: Vec, c: float, s: float) -> Mat:
 
 def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int) -> Any:
     """The warm-started Newton of ``ReducedDynamics._rotation`` on one row:
-    (R, the residual max |w_i . R v_i0 - cos a2| of the last iterate checked)."""
-    residual = math.inf
+    (R, the residual max |w_i . R v_i0 - cos a2| of the last iterate checked, the
+    distal axes v_i = R v_i0 of R: the last check's, else computed)."""
+    residual, checked, zero = math.inf, False, (0.0, 0.0, 0.0)
+    v = (zero, zero, zero)
     for _ in range(iterations):
         v, r, residual = _closure(R, w, v0, cos_a2)
-        if residual <= stop:
+        checked = residual <= stop
+        if checked:
             break
         axis, angle = _newton_step(w, v, r)
         R = _turned(R, axis, math.cos(angle), math.sin(angle))
-    return R, residual
+    return R, residual, v if checked else _mat_vecs(R, v0)
 
 
 @_jit.inline
@@ -246,7 +240,7 @@ def _home_of(b: Vec, det_a: float, home_sign: float, sign_tol: float) -> bool:
 def _home_rule(R: Mat, w: Mat, u: Mat, v0: Mat, home_sign: float, sign_tol: float) -> bool:
     """The home sign rule (:func:`_home_of`) of the rotation R, b and det A computed
     as :func:`_row_terms` computes them (the same operations: the same bits)."""
-    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
+    v = _mat_vecs(R, v0)
     b0 = _dot(_cross(u[0], w[0]), v[0])
     b1 = _dot(_cross(u[1], w[1]), v[1])
     b2 = _dot(_cross(u[2], w[2]), v[2])
@@ -295,7 +289,7 @@ def _settle(
     iterations: int,
 ) -> tuple[bool, Mat]:
     """:func:`home_rotation_of` from the proximal axes w."""
-    R, residual = _newton(R, w, v0, cos_a2, 0.1 * tol, int(iterations))
+    R, residual, _ = _newton(R, w, v0, cos_a2, 0.1 * tol, int(iterations))
     home = _home_rule(R, w, u, v0, home_sign, sign_tol)
     ok = math.isfinite(residual) and residual <= tol and home
     return ok, R
@@ -397,16 +391,16 @@ def _leg_terms(
 
 # ------------------------------------------------------------------ dynamics
 @_jit.inline
-def _row_terms(cos: Vec, sin: Vec, w: Mat, rate: Vec, R: Mat, f: Flat, bias: bool) -> Any:
+def _row_terms(cos: Vec, sin: Vec, w: Mat, v: Mat, rate: Vec, R: Mat, f: Flat, bias: bool) -> Any:
     """Every term of one state (the cos and sin of its input angles, its proximal axes
-    w) but friction, as ``ReducedDynamics._terms`` and ``_bias``: (singular, det A, M,
-    c, g, J, Psi, Chi, Psi theta_dot, Chi theta_dot, b), b_ii = (u_i x w_i) . v_i the
-    diagonal of B (det A and b: what the home sign rule :func:`_home_of` takes)."""
-    u, v0 = f[0], f[2]
+    w, its distal axes v_i = R v_i0) but friction, as ``ReducedDynamics._terms`` and
+    ``_bias``: (singular, det A, M, c, g, J, Psi, Chi, Psi theta_dot, Chi theta_dot,
+    b), b_ii = (u_i x w_i) . v_i the diagonal of B (det A and b: what the home sign
+    rule :func:`_home_of` takes)."""
+    u = f[0]
     frame_inv, dist_inertia, I_p, prox_diag = f[3], f[4], f[5], f[6]
     prox_moment, dist_moment, plat_moment, grav = f[7], f[8], f[9], f[10]
     singular_det = f[18]
-    v = (_mat_vec(R, v0[0]), _mat_vec(R, v0[1]), _mat_vec(R, v0[2]))
     a = (_cross(w[0], v[0]), _cross(w[1], v[1]), _cross(w[2], v[2]))
     uxw = (_cross(u[0], w[0]), _cross(u[1], w[1]), _cross(u[2], w[2]))
     b = (_dot(uxw[0], v[0]), _dot(uxw[1], v[1]), _dot(uxw[2], v[2]))
@@ -553,11 +547,13 @@ def _solve_acceleration(M: Mat, c: Vec, g: Vec, friction: Vec, tau: Vec) -> Vec:
 
 
 @_jit.inline
-def _row_acceleration(cos: Vec, sin: Vec, w: Mat, rate: Vec, tau: Vec, R: Mat, f: Flat) -> Any:
+def _row_acceleration(
+    cos: Vec, sin: Vec, w: Mat, v: Mat, rate: Vec, tau: Vec, R: Mat, f: Flat
+) -> Any:
     """(singular, det A, theta_ddot, b) of one state (as :func:`_row_terms` takes it;
     det A and b as it gives them)."""
     singular, det, M, c, g, _, Psi, Chi, psi_dot, chi_dot, b = _row_terms(
-        cos, sin, w, rate, R, f, True
+        cos, sin, w, v, rate, R, f, True
     )
     if singular:
         return True, det, (0.0, 0.0, 0.0), b
@@ -611,8 +607,8 @@ def terms(
     for row in range(n):
         cos, sin = _trig(_vec_of(theta[row]))
         w = _proximal(cos, sin, f[0], f[1])
-        r = _vec_of(rate[row])
-        out = _row_terms(cos, sin, w, r, _mat_of(R[row]), f, bias)
+        r, rotation = _vec_of(rate[row]), _mat_of(R[row])
+        out = _row_terms(cos, sin, w, _mat_vecs(rotation, f[2]), r, rotation, f, bias)
         singular[row] = out[0]
         det[row] = out[1]
         if out[0]:
@@ -650,8 +646,9 @@ def accelerations(
     for row in range(n):
         cos, sin = _trig(_vec_of(theta[row]))
         w = _proximal(cos, sin, f[0], f[1])
+        r, rotation = _vec_of(rate[row]), _mat_of(R[row])
         bad, d, acc, _ = _row_acceleration(
-            cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), _mat_of(R[row]), f
+            cos, sin, w, _mat_vecs(rotation, f[2]), r, _vec_of(tau[row]), rotation, f
         )
         singular[row] = bad
         det[row] = d
@@ -672,7 +669,7 @@ def _rk4_stage(
     ok, Rs = _home_rotation(w, R, f)
     if not ok:
         return STATUS_ROTATION, rs, rs
-    bad, _, acc, _ = _row_acceleration(cos, sin, w, rs, tau, Rs, f)
+    bad, _, acc, _ = _row_acceleration(cos, sin, w, _mat_vecs(Rs, f[2]), rs, tau, Rs, f)
     if bad:
         return STATUS_SINGULAR, rs, acc
     return STATUS_OK, rs, acc
@@ -684,6 +681,7 @@ def _row_step(
     cos: Vec,
     sin: Vec,
     w: Mat,
+    v: Mat,
     rate: Vec,
     tau: Vec,
     R: Mat,
@@ -691,11 +689,12 @@ def _row_step(
     rk4: bool,
     f: Flat,
 ) -> Any:
-    """One time step of one robot from a rotation R (cos, sin: of theta; w: its
-    proximal axes): (status, theta', rate', theta_ddot, b, det A), the last two at R
-    (the home sign rule's, :func:`_home_of`: R is settled where it holds)."""
+    """One time step of one robot from a rotation R (cos, sin: of theta; w, v: its
+    proximal and distal axes, v_i = R v_i0): (status, theta', rate', theta_ddot, b,
+    det A), the last two at R (the home sign rule's, :func:`_home_of`: R is settled
+    where it holds)."""
     zero = (0.0, 0.0, 0.0)
-    bad, det, a1, b = _row_acceleration(cos, sin, w, rate, tau, R, f)
+    bad, det, a1, b = _row_acceleration(cos, sin, w, v, rate, tau, R, f)
     if bad:
         return STATUS_SINGULAR, zero, zero, zero, b, det
     if not rk4:
@@ -754,8 +753,9 @@ def step(
         if not ok:
             return STATUS_ROTATION
         status, t, r, acc, _, _ = _row_step(
-            th, cos, sin, w, _vec_of(rate[row]), _vec_of(tau[row]), R, h, rk4, f
-        )
+            th, cos, sin, w, _mat_vecs(R, f[2]), _vec_of(rate[row]), _vec_of(tau[row]), R, h,
+            rk4, f,
+        )  # fmt: skip
         if status != STATUS_OK:
             return int(status)
         _put_mat(R_out[row], R)

@@ -21,6 +21,7 @@ __all__ = [
     "_mat_t_mul",
     "_mat_t_vec",
     "_mat_vec",
+    "_mat_vecs",
     "_put_mat",
     "_rotate",
     "_scale",
@@ -56,6 +57,11 @@ def _rotate(axis: Vec, c: float, s: float, x: Vec) -> Vec:
 def _mat_vec(m: Mat, x: Vec) -> Vec:
     """m x."""
     return (_dot(m[0], x), _dot(m[1], x), _dot(m[2], x))
+
+
+def _mat_vecs(m: Mat, rows: Mat) -> Mat:
+    """Rows m x_i of the rows x_i."""
+    return (_mat_vec(m, rows[0]), _mat_vec(m, rows[1]), _mat_vec(m, rows[2]))
 
 
 def _mat_t_vec(m: Mat, x: Vec) -> Vec:
@@ -137,6 +143,7 @@ KERNELS = (
     _cross,
     _rotate,
     _mat_vec,
+    _mat_vecs,
     _mat_t_vec,
     _mat_mul,
     _mat_t_mul,

@@ -55,7 +55,7 @@ from ..dynamics._reduced_kernel import (
     _turned,
     flat,
 )
-from ..dynamics._tuple_kernel import Mat, _mat_of, _put_mat
+from ..dynamics._tuple_kernel import Mat, _mat_of, _mat_vecs, _put_mat
 from ._dynamic_kernel import (
     _ANGLE_BOUND,
     _SPEED_BOUND,
@@ -232,7 +232,8 @@ def _euler_pass(
         residual = _ld(S, _RES, i)
         th, sp, tau = _ld3(S, _TH, i), _ld3(S, _SP, i), _ld3(S, _TAU, i)
         cos, sin = _ld3(S, _CS, i), _ld3(S, _CS + 3, i)
-        singular, det, M, c, g, _, _, _, _, _, b = _row_terms(cos, sin, w, sp, R, f, True)
+        v = _mat_vecs(R, f[2])
+        singular, det, M, c, g, _, _, _, _, _, b = _row_terms(cos, sin, w, v, sp, R, f, True)
         home = _home_of(b, det, home_sign, sign_tol)  # b, det A: as _home_rule's
         settled = math.isfinite(residual) and residual <= tol and home
         acc = _solve_acceleration(M, c, g, (0.0, 0.0, 0.0), tau)

@@ -190,10 +190,10 @@ def _physics_step(
     # the warm start settles where Newton's residual is within the tolerance and the
     # home sign rule holds (:func:`_home_rotation`); the rule is taken from the
     # step's own terms at the rotation (the same numbers, computed once)
-    rotation, residual = _newton(R, w, f[2], f[13], 0.1 * f[19], int(f[20]))
+    rotation, residual, v = _newton(R, w, f[2], f[13], 0.1 * f[19], int(f[20]))
     if not (math.isfinite(residual) and residual <= f[19]):
         return False, th, sp, R, tau
-    status, t, r, _, b, det = _row_step(th, cos, sin, w, sp, tau, rotation, dt, rk4, f)
+    status, t, r, _, b, det = _row_step(th, cos, sin, w, v, sp, tau, rotation, dt, rk4, f)
     if not _home_of(b, det, f[16], f[17]) or status != STATUS_OK:
         return False, th, sp, R, tau
     return True, t, r, rotation, tau
