@@ -558,16 +558,12 @@ def step(
             :func:`~spm_pin.envs._kinematic_kernel.step` takes them.
     """
     max_speed, dv, limit = motion[0], motion[1], flags[0] != 0
-    # One robot's period: the arrays of a batch of one, reused robot after robot.
-    one = np.zeros(1, dtype=np.int64)
-    a = np.empty((1, 3))
-    th = np.empty((1, 3))
-    sp = np.empty((1, 3))
-    rot = np.empty((1, 3, 3))
-    start_goal = np.empty((1, 3))
-    goal_speed = np.empty((1, 3))
-    wanted = np.empty((1, 3))
-    path = np.empty((substeps + 1, 1, 3))
+    # One robot's period: the arrays of a batch of one, reused robot after robot, as
+    # views of one buffer (one allocation per call)
+    buffer = np.empty((substeps + 10, 3))
+    a, th, sp, start_goal = buffer[0:1], buffer[1:2], buffer[2:3], buffer[3:4]
+    goal_speed, wanted = buffer[4:5], buffer[5:6]
+    rot, path = buffer[6:9].reshape((1, 3, 3)), buffer[9:].reshape((substeps + 1, 1, 3))
     f = flat(k)
     for m in range(rows.shape[0]):
         r = rows[m]
@@ -593,10 +589,10 @@ def step(
         for j in range(3):
             th[0, j] = t[j]
             sp[0, j] = v[j]
-        one[0] = r
-        finish(one, a, path[0], th, sp, rot, path, start_goal, goal_speed, theta, speed, R, goal,
-               hold, steps, servo_goal, servo_speed, position, substeps, motion, flags, weights,
-               low, high, cover, k, out[m : m + 1], handed[m : m + 1], counts)  # fmt: skip
+        finish(rows[m : m + 1], a, path[0], th, sp, rot, path, start_goal, goal_speed, theta,
+               speed, R, goal, hold, steps, servo_goal, servo_speed, position, substeps, motion,
+               flags, weights, low, high, cover, k, out[m : m + 1], handed[m : m + 1],
+               counts)  # fmt: skip
         if not handed[m]:
             for j in range(3):
                 torque[r, j] = tq[j]
