@@ -71,6 +71,23 @@ class _Record(NamedTuple):
     parts: tuple[tuple[str, Any], ...]
 
 
+class _Whole(NamedTuple):
+    """The whole step's compiled call and what a step reads around it, unpacked once
+    per step: the entry point, its bundle, the summary (:data:`~spm_pin.envs.
+    _single_kernel.SUMMARY` numbers), robot 0's action row, the record and the
+    observation row it writes, the record's parts (as :class:`_Record`'s) and the
+    episode's step limit."""
+
+    call: Callable[..., None]
+    bundle: Any
+    summary: FloatArray
+    action: FloatArray
+    record: FloatArray
+    obs: ObsArray
+    parts: tuple[tuple[str, Any], ...]
+    max_steps: int
+
+
 class SingleStep:
     """Robot 0 of ``core`` stepped and observed as a single environment (see the
     module).
@@ -83,8 +100,8 @@ class SingleStep:
         self.core = core
         self._one: _One | None = None
         self._record: _Record | None = None
-        #: The whole step's compiled call, its bundle and its summary, once made.
-        self._whole: tuple[Callable[..., None], Any, FloatArray] | None = None
+        #: The whole step's compiled call and what a step reads, once made.
+        self._whole: _Whole | None = None
         #: Whether the whole step's call was found not to apply.
         self._apart = False
         self._max_steps = core.settings.max_steps
@@ -134,9 +151,9 @@ class SingleStep:
             self._record = _Record(_jit.entry(kernel, args), args, obs[0], record, tuple(parts))
         return self._record
 
-    def _prepared_whole(self) -> tuple[Callable[..., None], Any, FloatArray] | None:
-        """The whole step's compiled call (:mod:`~spm_pin.envs._single_kernel`), its
-        bundle and its summary, made on first use; None where it does not apply (either call
+    def _prepared_whole(self) -> _Whole | None:
+        """The whole step's compiled call (:mod:`~spm_pin.envs._single_kernel`) and
+        what a step reads, made on first use; None where it does not apply (either call
         missing, or a step kernel other than the module's own)."""
         one, record = self._prepared_one(), self._prepared_record()
         if one is None or record is None or self._apart:
@@ -154,7 +171,10 @@ class SingleStep:
             parts = (one.out, one.handed, self.core.steps, summary)
             bundle = kernels["make"](one.args, record.args, *parts)
             whole = kernels[family[-1].__name__]
-            self._whole = (_jit.entry(whole, (bundle,)), bundle, summary)
+            self._whole = _Whole(
+                _jit.entry(whole, (bundle,)), bundle, summary, one.action, record.record,
+                record.obs, record.parts, self._max_steps,
+            )  # fmt: skip
         return self._whole
 
     # ---------------------------------------------------------------- the step
@@ -230,35 +250,43 @@ class SingleStep:
                 result = self.step_one(action)
                 obs, numbers = self.observe_one(rng)
                 return self._gymnasium(obs, result, numbers)
-        one, record = self._one, self._record
-        assert one is not None and record is not None
+        call, bundle, summary, row, record, obs, parts, max_steps = whole
         if type(action) is np.ndarray and action.shape == (3,) and action.dtype.kind == "f":
-            one.action[:] = action  # its values are checked by the compiled call
+            row[...] = action  # its values are checked by the compiled call
         else:
-            one.action[:] = check_actions(action, (3,))
-        call, bundle, summary = whole
+            row[...] = check_actions(action, (3,))
         call(bundle)
         reward, error, fraction, success, unsafe, handed, steps = summary.tolist()
-        if handed < 0.0:  # not finite: refused, nothing moved
-            check_actions(action, (3,))  # raises the InputError
-            raise AssertionError("the compiled step refused a finite action")
-        if handed:  # stepped by numpy, then observed
-            result = StepOne.of(self.core._hand_back(_ROW, one.action[None].copy()))
-            record.call(*record.args)
-            obs, numbers = self._read(record)
-            return self._gymnasium(obs, result, numbers)
-        numbers = record.record.copy()  # the info's arrays: views of this copy
+        if handed:
+            return self._handed(action, handed)
+        numbers = record.copy()  # the info's arrays: views of this copy
         info = {
             "orientation_error": error,
             "step_fraction": fraction,
             "success": success != 0.0,
             "unsafe": unsafe != 0.0,
         }
-        for key, part in record.parts:
+        for key, part in parts:
             info[key] = numbers[part]
         terminated = success != 0.0 or unsafe != 0.0
-        truncated = not terminated and steps >= self._max_steps
-        return record.obs.copy(), reward, terminated, truncated, info
+        truncated = not terminated and steps >= max_steps
+        return obs.copy(), reward, terminated, truncated, info
+
+    def _handed(
+        self, action: npt.ArrayLike, handed: float
+    ) -> tuple[ObsArray, float, bool, bool, dict[str, Any]]:
+        """A step the whole call did not end (its summary's flag ``handed``): an
+        action not finite (-1.0: refused, nothing moved) raises the InputError; a robot
+        handed back (1.0) is stepped by numpy, then observed."""
+        one, record = self._one, self._record
+        assert one is not None and record is not None
+        if handed < 0.0:
+            check_actions(action, (3,))  # raises the InputError
+            raise AssertionError("the compiled step refused a finite action")
+        result = StepOne.of(self.core._hand_back(_ROW, one.action[None].copy()))
+        record.call(*record.args)
+        obs, numbers = self._read(record)
+        return self._gymnasium(obs, result, numbers)
 
     def _gymnasium(
         self, obs: ObsArray, result: StepOne, numbers: dict[str, Any]
