@@ -333,3 +333,33 @@ def test_the_home_rule_from_the_terms_is_the_rule_of_every_assembly_mode() -> No
             np.testing.assert_allclose(b, modes.b[n, slot], rtol=0.0, atol=1e-12)
             seen.add(truth)
     assert seen == {True, False}
+
+
+def test_the_turns_cos_and_sin_are_libms_to_one_unit_in_the_last_place() -> None:
+    # Newton's turns take cos and sin from their Taylor series below SMALL_ANGLE (no
+    # libm call, so the blocks' lanes vectorise); libm is the truth, compiled and
+    # Python alike, and beyond the series' range _cos_sin is libm's, bit for bit.
+    import math
+
+    from spm_pin.dynamics import _tuple_kernel
+
+    small = _tuple_kernel.SMALL_ANGLE
+    table = _jit.kernels(_tuple_kernel.KERNELS)
+    rng = np.random.default_rng(SEED)
+    inside = np.concatenate(
+        [
+            rng.uniform(-small, small, 2000),
+            10.0 ** rng.uniform(-20, -2, 2000) * rng.choice([-1.0, 1.0], 2000),
+            [0.0, -0.0, np.nextafter(small, 0.0), -np.nextafter(small, 0.0), 1e-300],
+        ]
+    )
+    outside = np.concatenate([[small, -small, 0.5, 3.0, -2.0, 1e3], rng.uniform(-10, 10, 200)])
+    for x in inside:
+        c, s = table["_cos_sin"](float(x))
+        assert (c, s) == _tuple_kernel._cos_sin(float(x))  # the Python twin's bits
+        assert abs(c - math.cos(x)) <= np.spacing(math.cos(x)), x
+        assert abs(s - math.sin(x)) <= np.spacing(abs(math.sin(x))) or s == math.sin(x), x
+    for x in outside:
+        assert table["_cos_sin"](float(x)) == (math.cos(x), math.sin(x)), x
+    c, s = table["_cos_sin"](math.nan)
+    assert math.isnan(c) and math.isnan(s)

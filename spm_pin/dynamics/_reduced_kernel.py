@@ -45,6 +45,7 @@ from ._tuple_kernel import KERNELS as TUPLE_KERNELS
 from ._tuple_kernel import (
     Mat,
     Vec,
+    _cos_sin,
     _cross,
     _dot,
     _mat_mul,
@@ -223,7 +224,7 @@ def _newton(R: Mat, w: Mat, v0: Mat, cos_a2: float, stop: float, iterations: int
         if checked:
             break
         axis, angle = _newton_step(w, v, r)
-        R = _turned(R, axis, math.cos(angle), math.sin(angle))
+        R = _turned(R, axis, *_cos_sin(angle))
     return R, residual, v if checked else _mat_vecs(R, v0)
 
 

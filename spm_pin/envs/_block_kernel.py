@@ -55,7 +55,7 @@ from ..dynamics._reduced_kernel import (
     _turned,
     flat,
 )
-from ..dynamics._tuple_kernel import Mat, _mat_of, _mat_vecs, _put_mat
+from ..dynamics._tuple_kernel import SMALL_ANGLE, Mat, _mat_of, _mat_vecs, _put_mat, _small_cos_sin
 from ._dynamic_kernel import (
     _ANGLE_BOUND,
     _SPEED_BOUND,
@@ -296,10 +296,17 @@ def period(
         for _ in range(iterations):
             if _newton_pass(S, cos_a2, stop, v0) == 0:
                 break
+            # the turns' cos and sin as _cos_sin gives them: the series in one
+            # vectorised loop, then libm's where the angle is beyond its range (rare)
+            for i in range(BLOCK):
+                c, s = _small_cos_sin(_ld(S, _ANG, i))
+                _st(S, _CN, i, c)
+                _st(S, _SN, i, s)
             for i in range(BLOCK):
                 angle = _ld(S, _ANG, i)
-                _st(S, _CN, i, math.cos(angle))
-                _st(S, _SN, i, math.sin(angle))
+                if not abs(angle) < SMALL_ANGLE:
+                    _st(S, _CN, i, math.cos(angle))
+                    _st(S, _SN, i, math.sin(angle))
             _turn_pass(S)
         _euler_pass(S, P, step, dt, servo, full, f)
 
