@@ -20,6 +20,7 @@ import pytest
 pytest.importorskip("gymnasium")
 
 from spm_pin import _jit
+from spm_pin.dynamics import _tuple_kernel
 from spm_pin.envs import OrientDynamicVectorEnv, _block_kernel, _dynamic_kernel
 from spm_pin.envs._dynamic import BLOCK_ROWS
 
@@ -165,3 +166,25 @@ def test_a_blocks_period_is_each_robots_period(
         np.testing.assert_array_equal(S[_block_kernel._TSP : _block_kernel._TSP + 3, i], tq_speed)
         assert S[_block_kernel._LOAD, i] == load
         np.testing.assert_array_equal(P[1:, :, i], path[1:, 0, :])
+
+
+@needs_numba
+def test_a_blocks_cos_and_sin_are_each_angles() -> None:
+    """The lanes' cos and sin (the first round and kernels vectorised, the angles that
+    need more taken one by one) against the row kernels' function: the same bits, with
+    angles near multiples of pi/2, beyond the reduction's range, inf and NaN."""
+    trig_pass = _jit.kernels(_block_kernel.KERNELS, lanes=True)["_trig_pass"]
+    angle_cos_sin = _jit.kernels(_tuple_kernel.KERNELS)["_angle_cos_sin"]
+    rng = np.random.default_rng(3)
+    special = [np.pi / 2, -3 * np.pi / 2, np.nextafter(1303 * np.pi / 2, 0.0), 1e6, np.inf]
+    special += [-np.inf, np.nan, -0.0]
+    for angles in (rng.uniform(-2048.0, 2048.0, (3, BLOCK)), rng.uniform(-4.0, 4.0, (3, BLOCK))):
+        angles.flat[rng.choice(angles.size, len(special), replace=False)] = special
+        S = np.zeros((_block_kernel.ROWS, BLOCK))
+        S[_block_kernel._TH : _block_kernel._TH + 3] = angles
+        trig_pass(S.reshape(-1), _block_kernel._TH, _block_kernel._CS)
+        expected = np.array([[angle_cos_sin(x) for x in row] for row in angles])
+        expected = np.concatenate([expected[..., 0], expected[..., 1]])
+        got = S[_block_kernel._CS : _block_kernel._CS + 6]
+        # the bits, so -0 and NaN too
+        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))

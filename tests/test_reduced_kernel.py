@@ -11,6 +11,7 @@ path's; the dynamic environment steps alike in a process with ``SPM_PIN_JIT=0``.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -22,7 +23,8 @@ import pytest
 import spm_pin as spm
 from spm_pin import _jit
 from spm_pin import dynamics as D
-from spm_pin.dynamics import _reduced_kernel
+from spm_pin._checks import ANGLE_LIMIT
+from spm_pin.dynamics import _reduced_kernel, _tuple_kernel
 from spm_pin.dynamics import reduced as reduced_module
 from spm_pin.kinematics.fk import satisfies_home_rule
 
@@ -339,10 +341,6 @@ def test_the_turns_cos_and_sin_are_libms_to_one_unit_in_the_last_place() -> None
     # Newton's turns take cos and sin from their Taylor series below SMALL_ANGLE (no
     # libm call, so the blocks' lanes vectorise); libm is the truth, compiled and
     # Python alike, and beyond the series' range _cos_sin is libm's, bit for bit.
-    import math
-
-    from spm_pin.dynamics import _tuple_kernel
-
     small = _tuple_kernel.SMALL_ANGLE
     table = _jit.kernels(_tuple_kernel.KERNELS)
     rng = np.random.default_rng(SEED)
@@ -358,8 +356,47 @@ def test_the_turns_cos_and_sin_are_libms_to_one_unit_in_the_last_place() -> None
         c, s = table["_cos_sin"](float(x))
         assert (c, s) == _tuple_kernel._cos_sin(float(x))  # the Python twin's bits
         assert abs(c - math.cos(x)) <= np.spacing(math.cos(x)), x
-        assert abs(s - math.sin(x)) <= np.spacing(abs(math.sin(x))) or s == math.sin(x), x
+        assert abs(s - math.sin(x)) <= np.spacing(abs(math.sin(x))), x
     for x in outside:
         assert table["_cos_sin"](float(x)) == (math.cos(x), math.sin(x)), x
     c, s = table["_cos_sin"](math.nan)
     assert math.isnan(c) and math.isnan(s)
+
+
+def test_the_input_angles_cos_and_sin_are_libms_to_one_unit_in_the_last_place() -> None:
+    # The input angles' cos and sin by fdlibm's reduction and kernels (no libm call,
+    # so the blocks' lanes vectorise): at random, near multiples of pi/2 (where the
+    # first round cancels and the last rounds are needed), in the band where one
+    # round stops sufficing, at the range's edges; compiled and Python alike. Beyond
+    # the range, inf and NaN: libm's, bit for bit.
+    table = _jit.kernels(_tuple_kernel.KERNELS)
+    angle_cos_sin = table["_angle_cos_sin"]
+    limit = _tuple_kernel.ANGLE_RANGE
+    rng = np.random.default_rng(SEED)
+    multiples = rng.integers(1, 2**18, 1500) * rng.choice([-1.0, 1.0], 1500) * (np.pi / 2)
+    band = multiples * (1.0 + rng.choice([-1.0, 1.0], 1500) * 2.0 ** -rng.uniform(8.0, 40.0, 1500))
+    inside = np.concatenate(
+        [
+            rng.uniform(-ANGLE_LIMIT, ANGLE_LIMIT, 2000),
+            rng.uniform(-4.0, 4.0, 2000),
+            rng.uniform(-limit, limit, 1000),
+            10.0 ** rng.uniform(-300, 0, 500) * rng.choice([-1.0, 1.0], 500),
+            multiples,
+            np.nextafter(multiples, 0.0),
+            multiples + 7 * np.spacing(multiples),
+            band,
+            [0.0, -0.0, np.nextafter(limit, 0.0), -np.nextafter(limit, 0.0), 1e-300],
+        ]
+    )
+    first = [table["_first_suffices"](x, *table["_first_round"](x)[1:]) for x in map(float, inside)]
+    assert 1000 < first.count(False) < len(inside) - 5000  # both paths are taken
+    for x in map(float, inside):
+        c, s = angle_cos_sin(x)
+        assert (c, s) == _tuple_kernel._angle_cos_sin(x)  # the Python twin's bits
+        assert abs(c - math.cos(x)) <= np.spacing(abs(math.cos(x))), x
+        assert abs(s - math.sin(x)) <= np.spacing(abs(math.sin(x))), x
+    assert math.copysign(1.0, angle_cos_sin(-0.0)[1]) == -1.0  # sin(-0) = -0
+    for x in (limit, -limit, 1e6, -3e8, 1e300):
+        assert angle_cos_sin(x) == (math.cos(x), math.sin(x)), x
+    for x in (math.inf, -math.inf, math.nan):
+        assert all(math.isnan(value) for value in angle_cos_sin(x))

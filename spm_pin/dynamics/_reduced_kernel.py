@@ -45,6 +45,7 @@ from ._tuple_kernel import KERNELS as TUPLE_KERNELS
 from ._tuple_kernel import (
     Mat,
     Vec,
+    _angle_cos_sin,
     _cos_sin,
     _cross,
     _dot,
@@ -153,12 +154,10 @@ def _rate_rhs(
 
 # ------------------------------------------------------------------ kinematics
 def _trig(theta: Vec) -> tuple[Vec, Vec]:
-    """(cos theta_i, sin theta_i): computed once per state, shared by the rotation,
-    the proximal axes and the proximal links' gravity."""
-    return (
-        (math.cos(theta[0]), math.cos(theta[1]), math.cos(theta[2])),
-        (math.sin(theta[0]), math.sin(theta[1]), math.sin(theta[2])),
-    )
+    """(cos theta_i, sin theta_i) (:func:`_angle_cos_sin`): computed once per state,
+    shared by the rotation, the proximal axes and the proximal links' gravity."""
+    a, b, c = _angle_cos_sin(theta[0]), _angle_cos_sin(theta[1]), _angle_cos_sin(theta[2])
+    return (a[0], b[0], c[0]), (a[1], b[1], c[1])
 
 
 def _proximal(cos: Vec, sin: Vec, u: Mat, w0: Mat) -> Mat:

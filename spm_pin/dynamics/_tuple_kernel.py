@@ -15,13 +15,18 @@ import numpy.typing as npt
 from .. import _jit
 
 __all__ = [
+    "ANGLE_RANGE",
     "KERNELS",
     "SMALL_ANGLE",
     "Mat",
     "Vec",
+    "_angle_cos_sin",
     "_cos_sin",
     "_cross",
     "_dot",
+    "_first_round",
+    "_first_suffices",
+    "_last_rounds",
     "_mat_mul",
     "_mat_of",
     "_mat_t_mul",
@@ -29,6 +34,7 @@ __all__ = [
     "_mat_vec",
     "_mat_vecs",
     "_put_mat",
+    "_quadrant_cos_sin",
     "_rotate",
     "_scale",
     "_small_cos_sin",
@@ -169,6 +175,108 @@ def _cos_sin(x: float) -> tuple[float, float]:
     return math.cos(x), math.sin(x)
 
 
+#: Below this magnitude [rad], :func:`_angle_cos_sin` reduces the angle modulo pi/2
+#: itself (n, an integer below 2^19, times pi/2's 33-bit pieces is exact); beyond it,
+#: and for inf and NaN, it takes libm's values. The input angles' bound
+#: (:data:`spm_pin._checks.ANGLE_LIMIT`) is far inside.
+ANGLE_RANGE = 2.0**19
+
+# fdlibm's constants (e_rem_pio2.c, k_sin.c, k_cos.c):
+# ====================================================
+# Copyright (C) 1993 by Sun Microsystems, Inc. All rights reserved.
+#
+# Developed at SunSoft, a Sun Microsystems, Inc. business.
+# Permission to use, copy, modify, and distribute this
+# software is freely granted, provided that this notice
+# is preserved.
+# ====================================================
+# 2 / pi; pi / 2 in 33-bit pieces (_PIO2_1, _PIO2_2, _PIO2_3) and their tails.
+_CANCELLED = 2.0**-20  # the first round's r - w relative to x below which it does not suffice
+_ROUND = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND - _ROUND is x to the nearest integer
+_INVPIO2 = 6.36619772367581382433e-01
+_PIO2_1, _PIO2_1T = 1.57079632673412561417e00, 6.07710050650619224932e-11
+_PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
+_PIO2_3, _PIO2_3T = 2.02226624871116645580e-21, 8.47842766036889956997e-32
+# sin x = x + S1 x^3 + ... + S6 x^13 and cos x = 1 - x^2 / 2 + C1 x^4 + ... + C6 x^14 on
+# [-pi/4, pi/4], each within 2^-58.
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@_jit.inline
+def _first_round(x: float) -> tuple[float, float, float]:
+    """fdlibm's first round of the reduction: the nearest n to x / (pi/2) and x - n pi/2
+    as r - w, good to 85 bits (:func:`_first_suffices`)."""
+    n = (x * _INVPIO2 + _ROUND) - _ROUND
+    return n, x - n * _PIO2_1, n * _PIO2_1T
+
+
+@_jit.inline
+def _first_suffices(x: float, r: float, w: float) -> bool:
+    """Whether the first round is enough: |x| below :data:`ANGLE_RANGE` and fewer than
+    20 of its bits cancelled (x is not within 2^-20 |x| of a multiple of pi/2)."""
+    return abs(x) < ANGLE_RANGE and abs(r - w) >= abs(x) * _CANCELLED
+
+
+@_jit.inline
+def _last_rounds(n: float, r: float) -> tuple[float, float]:
+    """fdlibm's second and third rounds, after the first's r: x - n pi/2 as r - w, good
+    to 151 bits, which covers every x below :data:`ANGLE_RANGE`."""
+    t = r
+    w = n * _PIO2_2
+    r = t - w
+    w = n * _PIO2_2T - ((t - r) - w)
+    t = r
+    w = n * _PIO2_3
+    r = t - w
+    w = n * _PIO2_3T - ((t - r) - w)
+    return r, w
+
+
+@_jit.inline
+def _quadrant_cos_sin(n: float, r: float, w: float) -> tuple[float, float]:
+    """(cos x, sin x) from x - n pi/2 = r - w: fdlibm's kernels on [-pi/4, pi/4] of
+    y0 + y1 = r - w, then the quadrant n mod 4. No branch or call."""
+    y0 = r - w
+    y1 = (r - y0) - w
+    z = y0 * y0
+    z2 = z * z
+    p = _S2 + z * (_S3 + z * _S4) + z * z2 * (_S5 + z * _S6)
+    v = z * y0
+    s = y0 - ((z * (0.5 * y1 - v * p) - y1) - v * _S1)
+    q = z * (_C1 + z * (_C2 + z * _C3)) + z2 * z2 * (_C4 + z * (_C5 + z * _C6))
+    half = 0.5 * z
+    one = 1.0 - half
+    c = one + (((1.0 - one) - half) + (z * q - y0 * y1))
+    k = n - 4.0 * ((n * 0.25 + _ROUND) - _ROUND)  # n mod 4, as -2, -1, 0, 1 or 2
+    odd = k == 1.0 or k == -1.0
+    sin, cos = (c, s) if odd else (s, c)
+    if k == 2.0 or k == -2.0 or k == -1.0:  # quadrants 2 and 3: sin < 0
+        sin = -sin
+    if k == 1.0 or k == 2.0 or k == -2.0:  # quadrants 1 and 2: cos < 0
+        cos = -cos
+    return cos, sin
+
+
+@_jit.inline
+def _angle_cos_sin(x: float) -> tuple[float, float]:
+    """(cos x, sin x) for the input angles, as fdlibm (FreeBSD's and musl's libm)
+    computes them: x reduced modulo pi/2 by :func:`_first_round` (and, when it does not
+    suffice, :func:`_last_rounds`), then :func:`_quadrant_cos_sin`; beyond
+    :data:`ANGLE_RANGE` (inf, NaN), libm's. Within one unit in the last place of the
+    true value, so of libm's (tested). A loop over lanes vectorises the first round
+    and the kernels, and takes this function for the lanes :func:`_first_suffices`
+    refuses (one in 10^4 at random)."""
+    n, r, w = _first_round(x)
+    if not _first_suffices(x, r, w):
+        if not abs(x) < ANGLE_RANGE:
+            return math.cos(x), math.sin(x)
+        r, w = _last_rounds(n, r)
+    return _quadrant_cos_sin(n, r, w)
+
+
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
 KERNELS = (
     _dot,
@@ -187,4 +295,9 @@ KERNELS = (
     _scale,
     _small_cos_sin,
     _cos_sin,
+    _first_round,
+    _first_suffices,
+    _last_rounds,
+    _quadrant_cos_sin,
+    _angle_cos_sin,
 )

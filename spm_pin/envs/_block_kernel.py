@@ -9,10 +9,11 @@ which LLVM compiles to vector instructions (four robots per instruction with AVX
 :func:`spm_pin._jit.kernels` with ``lanes=True``). Each loop is one pass of the
 physics step:
 
-* the cos and sin of the input angles (the C library's, one robot after the other);
+* the cos and sin of the input angles (by their reduction modulo pi/2 and fdlibm's
+  polynomials, in lanes too);
 * the servo's torque, its envelope, the dynamics' input checks and the proximal axes;
 * Newton's warm-started rotation, pass by pass while any robot has not converged
-  (its turns' cos and sin again one robot after the other); a robot that has
+  (its turns' cos and sin from their Taylor series, in lanes too); a robot that has
   converged keeps its rotation;
 * the home sign rule, the terms, the solve and the semi-implicit Euler step.
 
@@ -55,7 +56,18 @@ from ..dynamics._reduced_kernel import (
     _turned,
     flat,
 )
-from ..dynamics._tuple_kernel import SMALL_ANGLE, Mat, _mat_of, _mat_vecs, _put_mat, _small_cos_sin
+from ..dynamics._tuple_kernel import (
+    SMALL_ANGLE,
+    Mat,
+    _angle_cos_sin,
+    _first_round,
+    _first_suffices,
+    _mat_of,
+    _mat_vecs,
+    _put_mat,
+    _quadrant_cos_sin,
+    _small_cos_sin,
+)
 from ._dynamic_kernel import (
     _ANGLE_BOUND,
     _SPEED_BOUND,
@@ -142,12 +154,29 @@ def _pick3(take: bool, a: Vec, b: Vec) -> Vec:
 
 @_jit.standalone
 def _trig_pass(S: FloatArray, row: int, out: int) -> None:
-    """cos then sin of three rows from ``row`` into six rows from ``out``."""
+    """cos then sin of three rows from ``row`` into six rows from ``out``, as
+    :func:`~spm_pin.dynamics._tuple_kernel._angle_cos_sin` gives them: its first round
+    and kernels in one vectorised loop, then the whole function for the angles that
+    need more (rare)."""
+    redo = 0
     for i in range(BLOCK):
         for j in range(3):
             angle = _ld(S, row + j, i)
-            _st(S, out + j, i, math.cos(angle))
-            _st(S, out + 3 + j, i, math.sin(angle))
+            n, r, w = _first_round(angle)
+            c, s = _quadrant_cos_sin(n, r, w)
+            _st(S, out + j, i, c)
+            _st(S, out + 3 + j, i, s)
+            redo += 0 if _first_suffices(angle, r, w) else 1
+    if redo == 0:
+        return
+    for i in range(BLOCK):
+        for j in range(3):
+            angle = _ld(S, row + j, i)
+            n, r, w = _first_round(angle)
+            if not _first_suffices(angle, r, w):
+                c, s = _angle_cos_sin(angle)
+                _st(S, out + j, i, c)
+                _st(S, out + 3 + j, i, s)
 
 
 @_jit.standalone
