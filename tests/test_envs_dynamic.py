@@ -291,3 +291,30 @@ def test_a_steps_extra_info_is_the_vector_envs_row_and_a_copy() -> None:
     single.core.speed[0] += 1.0  # the info keeps the step's values, not a view
     np.testing.assert_array_equal(info["theta_dot"], before)
     assert np.any(before != 0.0)
+
+
+def test_each_environment_builds_its_core_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An environment builds one core of its own kind (a cover is loaded by each core
+    built): the dynamic ones do not build a kinematic core first and replace it."""
+    from spm_pin.envs import OrientEnv, OrientVectorEnv, _core
+
+    built: list[str] = []
+    real = _core.OrientCore.__init__
+
+    def counted(self: Any, *args: Any, **kwargs: Any) -> None:
+        built.append(type(self).__name__)
+        real(self, *args, **kwargs)
+
+    monkeypatch.setattr(_core.OrientCore, "__init__", counted)
+    for make, kind in (
+        (OrientEnv, "OrientCore"),
+        (OrientDynamicEnv, "DynamicCore"),
+        (lambda: OrientVectorEnv(3), "OrientCore"),
+        (lambda: OrientDynamicVectorEnv(3), "DynamicCore"),
+    ):
+        built.clear()
+        env: Any = make()
+        assert built == [kind]
+        assert type(env.core).__name__ == kind
+        single = getattr(env, "single", None)
+        assert single is None or single.core is env.core  # the robot stepped is the core's

@@ -116,7 +116,7 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
     ) -> None:
         self.settings = settings_from(settings, options)
         self.render_mode = check_render_mode(render_mode)
-        self.core = OrientCore(self.settings, 1)
+        self.core = self._new_core()
         #: Robot 0 of ``core``, stepped as this environment's robot.
         self.single = SingleStep(self.core)
         # Box's own type parameter is wider than the arrays it holds.
@@ -124,6 +124,11 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         self.action_space = action_space()  # type: ignore[assignment]
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.settings.control_period)}
         self._view: HumanView | None = None
+
+    def _new_core(self) -> OrientCore:
+        """The batched state of this environment's one robot (built once, in
+        ``__init__``; a subclass with another core overrides this)."""
+        return OrientCore(self.settings, 1)
 
     def set_curriculum(self, level: float) -> None:
         """The curriculum level in [0, 1] for the next resets (``goal="curriculum"``)."""

@@ -32,7 +32,6 @@ from __future__ import annotations
 from typing import Any
 
 from ._dynamic import DynamicCore, PhysicsSettings, physics_from
-from ._single import SingleStep
 from .orient import OrientEnv
 from .settings import OrientSettings
 
@@ -69,5 +68,6 @@ class OrientDynamicEnv(OrientEnv):
     ) -> None:
         self.physics, rest = physics_from(physics, options)
         super().__init__(settings, render_mode, **rest)
-        self.core = DynamicCore(self.settings, 1, self.physics)
-        self.single = SingleStep(self.core)
+
+    def _new_core(self) -> DynamicCore:
+        return DynamicCore(self.settings, 1, self.physics)

@@ -81,7 +81,7 @@ class OrientVectorEnv(VectorEnv[ObsArray, npt.NDArray[np.float32], npt.NDArray[A
         self.settings = settings_from(settings, options)
         self.render_mode = check_render_mode(render_mode)
         self.num_envs = num_envs
-        self.core = OrientCore(self.settings, num_envs)
+        self.core = self._new_core()
         self.single_observation_space = observation_space()
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)
@@ -93,6 +93,11 @@ class OrientVectorEnv(VectorEnv[ObsArray, npt.NDArray[np.float32], npt.NDArray[A
         self._all = np.arange(num_envs, dtype=np.intp)
         self._autoreset = np.zeros(num_envs, dtype=bool)
         self._view: HumanView | None = None
+
+    def _new_core(self) -> OrientCore:
+        """The batched state of the ``num_envs`` robots (built once, in ``__init__``; a
+        subclass with another core overrides this)."""
+        return OrientCore(self.settings, self.num_envs)
 
     @property
     def sub_generators(self) -> tuple[np.random.Generator, ...]:

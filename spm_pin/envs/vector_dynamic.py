@@ -50,7 +50,9 @@ class OrientDynamicVectorEnv(OrientVectorEnv):
     ) -> None:
         self.physics, rest = physics_from(physics, options)
         super().__init__(num_envs, settings, render_mode, **rest)
-        self.core = DynamicCore(self.settings, self.num_envs, self.physics)
+
+    def _new_core(self) -> DynamicCore:
+        return DynamicCore(self.settings, self.num_envs, self.physics)
 
     def step(
         self, actions: npt.ArrayLike
