@@ -181,6 +181,9 @@ def _cos_sin(x: float) -> tuple[float, float]:
 #: (:data:`spm_pin._checks.ANGLE_LIMIT`) is far inside.
 ANGLE_RANGE = 2.0**19
 
+_CANCELLED = 2.0**-20  # the first round's r - w relative to x below which it does not suffice
+_ROUND = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND - _ROUND is x to the nearest integer
+
 # fdlibm's constants (e_rem_pio2.c, k_sin.c, k_cos.c):
 # ====================================================
 # Copyright (C) 1993 by Sun Microsystems, Inc. All rights reserved.
@@ -191,8 +194,6 @@ ANGLE_RANGE = 2.0**19
 # is preserved.
 # ====================================================
 # 2 / pi; pi / 2 in 33-bit pieces (_PIO2_1, _PIO2_2, _PIO2_3) and their tails.
-_CANCELLED = 2.0**-20  # the first round's r - w relative to x below which it does not suffice
-_ROUND = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND - _ROUND is x to the nearest integer
 _INVPIO2 = 6.36619772367581382433e-01
 _PIO2_1, _PIO2_1T = 1.57079632673412561417e00, 6.07710050650619224932e-11
 _PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
@@ -268,7 +269,7 @@ def _angle_cos_sin(x: float) -> tuple[float, float]:
     :data:`ANGLE_RANGE` (inf, NaN), libm's. Within one unit in the last place of the
     true value, so of libm's (tested). A loop over lanes vectorises the first round
     and the kernels, and takes this function for the lanes :func:`_first_suffices`
-    refuses (one in 10^4 at random)."""
+    refuses (0.14% of angles drawn at random in +-2048 rad, fewer for smaller ones)."""
     n, r, w = _first_round(x)
     if not _first_suffices(x, r, w):
         if not abs(x) < ANGLE_RANGE:
