@@ -23,6 +23,7 @@ from conftest import ENV_COVER_LEVEL
 
 import spm_pin as spm
 from spm_pin.envs import OrientSettings, OrientVectorEnv
+from spm_pin.envs import _kinematic_kernel as K
 from spm_pin.envs._core import OrientCore
 from spm_pin.envs._safe_lookup import BITMAP_DEPTH, SafeLookup
 from spm_pin.errors import InputError
@@ -33,6 +34,18 @@ from spm_pin.planning import SafeCover, SafeSet, safe_set_of
 FILL_LEVEL = ENV_COVER_LEVEL
 #: Random inputs of each kind checked against the safe set.
 SAMPLES = 8000
+
+
+def _parts(cover: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The compiled lookup's cover in its parts: the roots' index (n, n), the words,
+    the table of searched levels (levels, 4) and the keys."""
+    n = int(cover[K.ROOTS])
+    at_words, at_table = int(cover[K.WORDS]), int(cover[K.TABLE])
+    levels = int(cover[K.LEVELS])
+    index = cover[K.HEADER : K.HEADER + n * n].reshape(n, n)
+    table = cover[at_table : at_table + 4 * levels].reshape(levels, 4)
+    assert at_words == K.HEADER + n * n
+    return index, cover[at_words:at_table], table, cover[at_table + 4 * levels :]
 
 
 @pytest.fixture(scope="module")
@@ -260,9 +273,13 @@ def test_the_compiled_lookup_answers_as_numpy(safe: SafeSet, lookup: SafeLookup)
     # The bitmaps to every level (the default) and none (every level searched).
     for depth in (BITMAP_DEPTH, 0):
         lookup._arrays = lookup.arrays(depth)
-        _, index, words, sides, _, _, keys = lookup._arrays
+        index, words, table, keys = _parts(lookup._arrays)
         assert (words.size > 0) == (depth > 0)
-        assert sides.size == max(FILL_LEVEL - depth, 0) and (keys.size > 0) == (depth < FILL_LEVEL)
+        assert table.shape[0] == max(FILL_LEVEL - depth, 0) and (keys.size > 0) == (
+            depth < FILL_LEVEL
+        )
+        assert np.all(words == np.floor(words)) and np.all((words >= 0) & (words < 2.0**32))
+        assert np.all(np.diff(keys) > 0) or table.shape[0] > 1
         assert np.count_nonzero(index == -2) == lookup.covered_root_cells
         for theta in (anywhere, on_lines, anywhere[:1]):
             lookup.compiled = True
@@ -304,7 +321,7 @@ def test_bitmaps_and_searched_levels_mix(safe: SafeSet, cover_path: Path) -> Non
         assert np.any(expected) and not np.all(expected)
         for depth, searched in ((1, 1), (BITMAP_DEPTH, 0), (0, 2)):
             lookup._arrays = lookup.arrays(depth)
-            assert lookup._arrays[3].size == searched
+            assert _parts(lookup._arrays)[2].shape[0] == searched
             lookup.compiled = True
             np.testing.assert_array_equal(lookup.covered(points), expected)
 

@@ -338,20 +338,28 @@ def test_the_home_rule_from_the_terms_is_the_rule_of_every_assembly_mode() -> No
 
 
 def test_the_turns_cos_and_sin_are_libms_to_one_unit_in_the_last_place() -> None:
-    # Newton's turns take cos and sin from their Taylor series below SMALL_ANGLE (no
-    # libm call, so the blocks' lanes vectorise); libm is the truth, compiled and
-    # Python alike, and beyond the series' range _cos_sin is libm's, bit for bit.
-    small = _tuple_kernel.SMALL_ANGLE
+    # Newton's turns take cos and sin from their Taylor series below SMALL_ANGLE and
+    # from fdlibm's kernels below pi/4 (no libm call: the blocks' lanes vectorise, and
+    # a kinematic step's turns of a few hundredths of a radian cost half as much);
+    # libm is the truth, compiled and Python alike, and from pi/4 on _cos_sin is
+    # libm's, bit for bit.
+    small, quarter = _tuple_kernel.SMALL_ANGLE, math.pi / 4.0
     table = _jit.kernels(_tuple_kernel.KERNELS)
     rng = np.random.default_rng(SEED)
+    signs = rng.choice([-1.0, 1.0], 4000)
     inside = np.concatenate(
         [
             rng.uniform(-small, small, 2000),
-            10.0 ** rng.uniform(-20, -2, 2000) * rng.choice([-1.0, 1.0], 2000),
+            10.0 ** rng.uniform(-20, -2, 2000) * signs[:2000],
             [0.0, -0.0, np.nextafter(small, 0.0), -np.nextafter(small, 0.0), 1e-300],
+            rng.uniform(small, quarter, 2000) * signs[2000:],
+            [small, -small, 0.05, 0.5, np.nextafter(quarter, 0.0), -np.nextafter(quarter, 0.0)],
         ]
     )
-    outside = np.concatenate([[small, -small, 0.5, 3.0, -2.0, 1e3], rng.uniform(-10, 10, 200)])
+    outside = rng.uniform(-10, 10, 400)
+    outside = np.concatenate(
+        [[quarter, -quarter, 3.0, -2.0, 1e3], outside[abs(outside) >= quarter]]
+    )
     for x in inside:
         c, s = table["_cos_sin"](float(x))
         assert (c, s) == _tuple_kernel._cos_sin(float(x))  # the Python twin's bits

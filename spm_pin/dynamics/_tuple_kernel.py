@@ -166,15 +166,6 @@ def _small_cos_sin(x: float) -> tuple[float, float]:
     return c, s
 
 
-@_jit.inline
-def _cos_sin(x: float) -> tuple[float, float]:
-    """(cos x, sin x): :func:`_small_cos_sin` below :data:`SMALL_ANGLE` (Newton's turns
-    of a warm-started rotation, 1e-4 rad and less), else libm's (NaN: libm's)."""
-    if abs(x) < SMALL_ANGLE:
-        return _small_cos_sin(x)
-    return math.cos(x), math.sin(x)
-
-
 #: Below this magnitude [rad], :func:`_angle_cos_sin` reduces the angle modulo pi/2
 #: itself (n, an integer below 2^19, times pi/2's 33-bit pieces is exact); beyond it,
 #: and for inf and NaN, it takes libm's values. The input angles' bound
@@ -182,6 +173,7 @@ def _cos_sin(x: float) -> tuple[float, float]:
 ANGLE_RANGE = 2.0**19
 
 _CANCELLED = 2.0**-20  # the first round's r - w relative to x below which it does not suffice
+_QUARTER_PI = 0.25 * math.pi  # fdlibm's kernels alone serve below it
 _ROUND = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND - _ROUND is x to the nearest integer
 
 # fdlibm's constants (e_rem_pio2.c, k_sin.c, k_cos.c):
@@ -278,6 +270,19 @@ def _angle_cos_sin(x: float) -> tuple[float, float]:
     return _quadrant_cos_sin(n, r, w)
 
 
+@_jit.inline
+def _cos_sin(x: float) -> tuple[float, float]:
+    """(cos x, sin x) of Newton's turns: :func:`_small_cos_sin` below
+    :data:`SMALL_ANGLE` (the turns of the dynamics' warm start, 1e-4 rad and less),
+    fdlibm's kernels (:func:`_quadrant_cos_sin`, no reduction) below pi/4 (the
+    kinematic steps' turns, about 0.05 rad), else libm's (NaN: libm's)."""
+    if abs(x) < SMALL_ANGLE:
+        return _small_cos_sin(x)
+    if abs(x) < _QUARTER_PI:
+        return _quadrant_cos_sin(0.0, x, 0.0)
+    return math.cos(x), math.sin(x)
+
+
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
 KERNELS = (
     _dot,
@@ -295,10 +300,10 @@ KERNELS = (
     _unit,
     _scale,
     _small_cos_sin,
-    _cos_sin,
     _first_round,
     _first_suffices,
     _last_rounds,
     _quadrant_cos_sin,
+    _cos_sin,
     _angle_cos_sin,
 )

@@ -60,6 +60,7 @@ from ..dynamics._tuple_kernel import (
     SMALL_ANGLE,
     Mat,
     _angle_cos_sin,
+    _cos_sin,
     _first_round,
     _first_suffices,
     _mat_of,
@@ -326,7 +327,7 @@ def period(
             if _newton_pass(S, cos_a2, stop, v0) == 0:
                 break
             # the turns' cos and sin as _cos_sin gives them: the series in one
-            # vectorised loop, then libm's where the angle is beyond its range (rare)
+            # vectorised loop, then _cos_sin where the angle is beyond its range (rare)
             for i in range(BLOCK):
                 c, s = _small_cos_sin(_ld(S, _ANG, i))
                 _st(S, _CN, i, c)
@@ -334,8 +335,9 @@ def period(
             for i in range(BLOCK):
                 angle = _ld(S, _ANG, i)
                 if not abs(angle) < SMALL_ANGLE:
-                    _st(S, _CN, i, math.cos(angle))
-                    _st(S, _SN, i, math.sin(angle))
+                    c, s = _cos_sin(angle)
+                    _st(S, _CN, i, c)
+                    _st(S, _SN, i, s)
             _turn_pass(S)
         _euler_pass(S, P, step, dt, servo, full, f)
 

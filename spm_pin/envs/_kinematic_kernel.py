@@ -42,26 +42,45 @@ from ..dynamics._reduced_kernel import KERNELS as REDUCED_KERNELS
 from ..dynamics._reduced_kernel import home_rotation_of
 from ..dynamics._tuple_kernel import Mat, Vec
 
-__all__ = ["CHECK", "KERNELS", "SAFE", "UNSAFE", "covered", "covered_rows", "step"]
+__all__ = [
+    "CELLS",
+    "CHECK",
+    "GAP12",
+    "GAP23",
+    "HEADER",
+    "KERNELS",
+    "LEVELS",
+    "ROOTS",
+    "ROOT_SIDE",
+    "SAFE",
+    "TABLE",
+    "UNSAFE",
+    "WORDS",
+    "WORD_BITS",
+    "covered",
+    "covered_rows",
+    "step",
+]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
-#: A cover's arrays: (gaps, index, words, sides, sizes, starts, keys), see
-#: :func:`covered`.
-Cover = tuple[
-    FloatArray,
-    npt.NDArray[np.int32],
-    npt.NDArray[np.uint64],
-    FloatArray,
-    IntArray,
-    IntArray,
-    IntArray,
-]
+#: A cover as one array (:func:`covered`): a single array, so a check inlined into a
+#: loop takes and drops one reference, not one per part.
+Cover = FloatArray
 #: A root cell of :func:`covered`'s index that is covered whole, or that holds no
 #: covered cell down to the bitmaps' depth.
 ROOT_COVERED = -2
 ROOT_EMPTY = -1
+#: The cover's header (:func:`covered`): eta_2 - eta_1, eta_3 - eta_2 [deg], the root
+#: cells' side [deg], the bitmaps' cells per root side (2**depth), the root cells per
+#: side n, where the words start, how many levels are searched and where their table
+#: starts. The index follows the header.
+HEADER = 8
+GAP12, GAP23, ROOT_SIDE, CELLS, ROOTS, WORDS, LEVELS, TABLE = range(HEADER)
+#: Bits of a bitmap's word (an integer below 2**32 in a float: exact).
+WORD_BITS = 32
+_WORD_SHIFT = 5  # bit >> _WORD_SHIFT: the bit's word
 
 #: Verdicts of :func:`_verdict`: outside the joint limits, or (cover only) outside
 #: the certified cells.
@@ -74,7 +93,7 @@ CHECK = 2
 _DEGREES = 180.0 / math.pi
 
 
-def _search(keys: IntArray, start: int, end: int, key: int) -> bool:
+def _search(keys: FloatArray, start: int, end: int, key: float) -> bool:
     """Whether ``key`` is among ``keys[start:end]`` (sorted)."""
     low, high = start, end
     while low < high:
@@ -86,53 +105,56 @@ def _search(keys: IntArray, start: int, end: int, key: int) -> bool:
     return low < end and keys[low] == key
 
 
-# covered and _verdict are inlined into the kernels' loops over robots: a compiled
-# call of its own took and dropped a reference to each of the cover's arrays at each
-# check (atomic counts, about a tenth of a batched kinematic step)
+# covered and _verdict are inlined into the kernels' loops over robots. Each array
+# they are given is still referenced and released at each check (two atomic counts),
+# so the cover is one array: as seven, the counts took about a tenth of a batched
+# kinematic step
 @_jit.inline
 def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
     """Whether the gaps of the input (t0, t1, t2) [rad] lie in a certified cell.
 
     Args:
-        cover: (gaps, index, words, sides, sizes, starts, keys):
-            gaps: (eta_2 - eta_1, eta_3 - eta_2 [deg], side of the root cells [deg],
-            2**depth: the bitmaps' cells per root side);
-            index: per root cell (n, n), :data:`ROOT_COVERED`, :data:`ROOT_EMPTY`, or
-            the first of its words;
-            words: the bitmaps, a root's 4**depth bits (its cells at ``depth``,
-            row-major; a bit is set where a covered cell of any level down to
-            ``depth`` holds that cell) in 64-bit words;
-            sides, sizes: per level deeper than ``depth`` with covered cells, the
-            cells' side [deg] and the lattice size (keys are i * size + j);
-            starts: (levels + 1,), level m's keys are ``keys[starts[m]:starts[m + 1]]``;
-            keys: the sorted keys of every such level, one after the other.
+        cover: The cover, one float array (integers in it are exact):
+            the header (:data:`HEADER` entries, see :data:`GAP12` to :data:`TABLE`);
+            the index, per root cell (n x n, row-major) :data:`ROOT_COVERED`,
+            :data:`ROOT_EMPTY`, or where its bitmap starts among the words;
+            the words, a root's 4**depth bits (its cells at ``depth``, row-major; a
+            bit is set where a covered cell of any level down to ``depth`` holds that
+            cell), :data:`WORD_BITS` to a word;
+            the table, per level deeper than ``depth`` with covered cells: the cells'
+            side [deg], the lattice size (keys are i * size + j), and where its
+            sorted keys start and end;
+            the keys.
 
     A cell's index at each level is floor(d / a * 2**level), d a gap and a the root
     side: halving a side scales the quotient exactly, so a bitmap's cell lies in the
     cell of each coarser level that its lattice says.
     """
-    gaps, index, words, sides, sizes, starts, keys = cover
     deg0, deg1, deg2 = t0 * _DEGREES, t1 * _DEGREES, t2 * _DEGREES
-    d12 = (gaps[0] - (deg1 - deg0)) % 360.0
-    d23 = (gaps[1] - (deg2 - deg1)) % 360.0
-    n = index.shape[0]
-    a = d12 / gaps[2]
-    b = d23 / gaps[2]
+    d12 = (cover[GAP12] - (deg1 - deg0)) % 360.0
+    d23 = (cover[GAP23] - (deg2 - deg1)) % 360.0
+    n = int(cover[ROOTS])
+    a = d12 / cover[ROOT_SIDE]
+    b = d23 / cover[ROOT_SIDE]
     if not (a >= 0.0 and a < n and b >= 0.0 and b < n):  # NaN: outside
         return False
     i, j = int(a), int(b)  # int() of a number >= 0: its floor
-    code = index[i, j]
+    code = int(cover[HEADER + i * n + j])
     if code == ROOT_COVERED:
         return True
     if code >= 0:
-        cells = int(gaps[3])
-        bit = (int(a * gaps[3]) - i * cells) * cells + (int(b * gaps[3]) - j * cells)
-        if (words[code + (bit >> 6)] >> np.uint64(bit & 63)) & np.uint64(1):
+        cells_f = cover[CELLS]
+        cells = int(cells_f)
+        bit = (int(a * cells_f) - i * cells) * cells + (int(b * cells_f) - j * cells)
+        word = int(cover[int(cover[WORDS]) + code + (bit >> _WORD_SHIFT)])
+        if (word >> (bit & (WORD_BITS - 1))) & 1:
             return True
-    for level in range(sides.shape[0]):
-        side = sides[level]
-        key = math.floor(d12 / side) * sizes[level] + math.floor(d23 / side)
-        if _search(keys, starts[level], starts[level + 1], key):
+    table = int(cover[TABLE])
+    for level in range(int(cover[LEVELS])):
+        side = cover[table + 4 * level]
+        key = math.floor(d12 / side) * cover[table + 4 * level + 1] + math.floor(d23 / side)
+        start, end = int(cover[table + 4 * level + 2]), int(cover[table + 4 * level + 3])
+        if _search(cover, start, end, key):
             return True
     return False
 

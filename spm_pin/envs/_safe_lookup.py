@@ -27,7 +27,8 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..planning import SafeCover, SafeSet
-from ._kinematic_kernel import ROOT_COVERED, ROOT_EMPTY, Cover
+from . import _kinematic_kernel as K
+from ._kinematic_kernel import Cover
 
 __all__ = ["BITMAP_DEPTH", "SafeLookup"]
 
@@ -122,47 +123,60 @@ class SafeLookup:
         return cls(cover)
 
     def arrays(self, depth: int = BITMAP_DEPTH) -> Cover:
-        """The cover as the arrays of :func:`spm_pin.envs._kinematic_kernel.covered`:
-        (eta_2 - eta_1, eta_3 - eta_2 [deg], root side [deg], 2**d), the roots' index,
-        their bitmaps of the cells at level d (the deepest level with covered cells,
-        at most ``depth``), and per deeper level its side [deg], lattice size and the
-        start of its keys in the sorted keys of every such level, one after the
-        other."""
+        """The cover as the array of :func:`spm_pin.envs._kinematic_kernel.covered`:
+        the header (eta_2 - eta_1, eta_3 - eta_2 [deg], root side [deg], 2**d, ...),
+        the roots' index, their bitmaps of the cells at level d (the deepest level with
+        covered cells, at most ``depth``), and per deeper level its side [deg], lattice
+        size and the span of its sorted keys, then the keys."""
         n = self._roots.shape[0]
         levels = [((entry[1] // n).bit_length() - 1, entry) for entry in self._levels]
         shallow = [(lv, entry[2]) for lv, entry in levels if lv <= depth]
         deep = [entry for lv, entry in levels if lv > depth]
         d = max((lv for lv, keys in shallow if keys.size), default=0)
         eta = np.degrees(np.asarray(self.safe_set.design.eta, dtype=float))
-        gaps = np.array([eta[1] - eta[0], eta[2] - eta[1], self.root_step_deg, 2.0**d])
         index, words = self._bitmaps(shallow, d)
-        sides = np.array([side for side, _, _ in deep], dtype=float)
-        sizes = np.array([size for _, size, _ in deep], dtype=np.int64)
-        lengths = [keys.size for _, _, keys in deep]
-        starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-        keys = np.concatenate([np.zeros(0, np.int64)] + [k for _, _, k in deep])
-        return gaps, index, words, sides, sizes, starts, keys.astype(np.int64)
+        at_words = K.HEADER + n * n
+        at_table = at_words + words.size
+        at_keys = at_table + 4 * len(deep)
+        header = np.zeros(K.HEADER)
+        header[[K.GAP12, K.GAP23, K.ROOT_SIDE, K.CELLS, K.ROOTS]] = (
+            eta[1] - eta[0],
+            eta[2] - eta[1],
+            self.root_step_deg,
+            2.0**d,
+            n,
+        )
+        header[[K.WORDS, K.LEVELS, K.TABLE]] = at_words, len(deep), at_table
+        table = np.zeros((len(deep), 4))
+        start = at_keys
+        for row, (side, size, keys) in enumerate(deep):
+            table[row] = side, size, start, start + keys.size
+            start += keys.size
+        parts = [header, index.reshape(-1), words, table.reshape(-1)]
+        parts += [keys.astype(np.float64) for _, _, keys in deep]
+        return np.concatenate(parts).astype(np.float64)
 
-    def _bitmaps(
-        self, levels: list[tuple[int, IntArray]], d: int
-    ) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.uint64]]:
+    def _bitmaps(self, levels: list[tuple[int, IntArray]], d: int) -> tuple[FloatArray, FloatArray]:
         """(index, words) of :func:`~spm_pin.envs._kinematic_kernel.covered` for the
-        covered cells of ``levels`` ((level, sorted keys) each, none deeper than d)."""
+        covered cells of ``levels`` ((level, sorted keys) each, none deeper than d), as
+        floats: the index (n, n), the words (:data:`~spm_pin.envs._kinematic_kernel.
+        WORD_BITS` bits each)."""
         n = self._roots.shape[0]
-        index = np.full((n, n), ROOT_EMPTY, dtype=np.int32)
+        index = np.full((n, n), K.ROOT_EMPTY, dtype=np.int64)
         cells = 2**d
-        per_root = -(-(cells * cells) // 64)  # words per root
+        per_root = -(-(cells * cells) // K.WORD_BITS)  # words per root
         found = [(lv, keys // (n * 2**lv), keys % (n * 2**lv)) for lv, keys in levels]
         flat = np.unique(np.concatenate([np.zeros(0, np.int64)] + [
             (i >> lv) * n + (j >> lv) for lv, i, j in found
         ]))  # fmt: skip
-        index.reshape(-1)[flat] = np.arange(flat.size, dtype=np.int32) * per_root
-        index[self._roots] = ROOT_COVERED
+        index.reshape(-1)[flat] = np.arange(flat.size, dtype=np.int64) * per_root
+        index[self._roots] = K.ROOT_COVERED
         words = np.zeros(flat.size * per_root, dtype=np.uint64)
+        shift = K.WORD_BITS.bit_length() - 1
         for lv, i, j in found:
             if i.size == 0:
                 continue
-            first = index.reshape(-1)[(i >> lv) * n + (j >> lv)].astype(np.int64)
+            first = index.reshape(-1)[(i >> lv) * n + (j >> lv)]
             keep = first >= 0  # not under a covered root
             span = 2 ** (d - lv)  # the bitmap's cells per side of this level's cell
             row = (i - ((i >> lv) << lv)) * span
@@ -172,10 +186,10 @@ class SafeLookup:
                     bit = (row + di) * cells + column + dj
                     np.bitwise_or.at(
                         words,
-                        (first + (bit >> 6))[keep],
-                        (np.uint64(1) << (bit & 63).astype(np.uint64))[keep],
+                        (first + (bit >> shift))[keep],
+                        (np.uint64(1) << (bit & (K.WORD_BITS - 1)).astype(np.uint64))[keep],
                     )
-        return index, words
+        return index.astype(np.float64), words.astype(np.float64)
 
     @property
     def covered_root_cells(self) -> int:
