@@ -224,3 +224,22 @@ def test_compiled_observations_are_numpys() -> None:
         rows, core.R, core.goal, core.theta, core.speed, core.limits.max_speed, python
     )
     np.testing.assert_array_equal(python, compiled)
+
+
+@needs_numba
+def test_the_gaps_modulo_is_pythons_bit_for_bit() -> None:
+    """The cover's gaps modulo 360 without ``fmod`` in [-360, 360) (``_mod360``):
+    Python's ``%`` bit for bit, compiled and Python, at random, at the range's edges
+    and beyond it, for -0.0 (which ``%`` turns into 0.0), inf and NaN."""
+    table = _jit.kernels(K.KERNELS)
+    rng = np.random.default_rng(8)
+    edges = [-360.0, 360.0, 0.0, -0.0, 1e-300, -1e-300, -1e-20, 720.0, -720.0, 1e6, -1e6]
+    edges += [np.nextafter(x, t) for x in (-360.0, 360.0, 0.0) for t in (-math.inf, math.inf)]
+    values = np.concatenate([rng.uniform(-400.0, 400.0, 4000), rng.uniform(-1e4, 1e4, 1000), edges])
+    for x in values.tolist():
+        expected = x % 360.0
+        for got in (table["_mod360"](x), K._mod360(x)):
+            assert got == expected and math.copysign(1.0, got) == math.copysign(1.0, expected), x
+    assert table["_mod360"](-0.0) == 0.0 and math.copysign(1.0, table["_mod360"](-0.0)) == 1.0
+    for x in (math.inf, -math.inf, math.nan):
+        assert math.isnan(table["_mod360"](x)) and math.isnan(x % 360.0)

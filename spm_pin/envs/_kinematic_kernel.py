@@ -105,6 +105,18 @@ def _search(keys: FloatArray, start: int, end: int, key: float) -> bool:
     return low < end and keys[low] == key
 
 
+@_jit.inline
+def _mod360(x: float) -> float:
+    """``x % 360.0`` (Python's, the same bits), without a call to ``fmod`` for x in
+    [-360, 360): there ``fmod`` gives x itself, and ``%`` adds 360 below 0 (and
+    turns -0.0 into 0.0)."""
+    if x >= 0.0 and x < 360.0:
+        return x + 0.0  # -0.0 + 0.0 is 0.0
+    if x >= -360.0 and x < 0.0:
+        return x + 360.0
+    return x % 360.0
+
+
 # covered and _verdict are inlined into the kernels' loops over robots. Each array
 # they are given is still referenced and released at each check (two atomic counts),
 # so the cover is one array: as seven, the counts took about a tenth of a batched
@@ -131,8 +143,8 @@ def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
     cell of each coarser level that its lattice says.
     """
     deg0, deg1, deg2 = t0 * _DEGREES, t1 * _DEGREES, t2 * _DEGREES
-    d12 = (cover[GAP12] - (deg1 - deg0)) % 360.0
-    d23 = (cover[GAP23] - (deg2 - deg1)) % 360.0
+    d12 = _mod360(cover[GAP12] - (deg1 - deg0))
+    d23 = _mod360(cover[GAP23] - (deg2 - deg1))
     n = int(cover[ROOTS])
     a = d12 / cover[ROOT_SIDE]
     b = d23 / cover[ROOT_SIDE]
@@ -357,4 +369,4 @@ def _enter(
 
 
 #: The kernels, callees first: what :func:`spm_pin._jit.kernels` compiles.
-KERNELS = (*REDUCED_KERNELS, _search, covered, covered_rows, _verdict, _clip, _enter, step)
+KERNELS = (*REDUCED_KERNELS, _search, _mod360, covered, covered_rows, _verdict, _clip, _enter, step)
