@@ -404,3 +404,39 @@ def test_a_standalone_pass_is_not_inlined_in_the_lanes_family() -> None:
     assert out[0] == math.inf and out[1] == -math.inf and math.isnan(out[2])
     with pytest.raises(ZeroDivisionError):
         plain["_quotients"](a, 0.0, expected)
+
+
+def test_each_kernel_tuple_lists_its_callees_before_their_callers() -> None:
+    """A family compiles a tuple's functions in order, each calling the compiled twins
+    of the functions compiled before it: a callee missing from the tuple is compiled
+    only if another tuple came first in the process (an inlined callee then fails to
+    type). So each tuple holds every kernel its functions call, callees first; the
+    blocks' tuple (compiled after the dynamic one) may call the dynamic one's."""
+    import importlib
+
+    names = [
+        "spm_pin.collision._configuration",
+        "spm_pin.dynamics._tuple_kernel",
+        "spm_pin.dynamics._reduced_kernel",
+        "spm_pin.envs._kinematic_kernel",
+        "spm_pin.envs._dynamic_kernel",
+        "spm_pin.envs._observe_kernel",
+        "spm_pin.envs._block_kernel",
+        "spm_pin.hardware._kernel",
+        "spm_pin.kinematics._fk_single",
+        "spm_pin.kinematics._scalar",
+    ]
+    tuples = {name: importlib.import_module(name).KERNELS for name in names}
+    every = {id(function) for functions in tuples.values() for function in functions}
+    earlier = {"spm_pin.envs._block_kernel": tuples["spm_pin.envs._dynamic_kernel"]}
+    checked = 0
+    for name, functions in tuples.items():
+        before = {id(function) for function in earlier.get(name, ())}
+        for function in functions:
+            for called in function.__code__.co_names:
+                value = function.__globals__.get(called)
+                if value is not None and id(value) in every:
+                    assert id(value) in before, f"{name}: {function.__name__} calls {called}"
+                    checked += 1
+            before.add(id(function))
+    assert checked > 100
