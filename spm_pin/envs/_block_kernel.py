@@ -387,12 +387,19 @@ def step(
     a = np.empty((BLOCK, 3))
     start_goal = np.empty((BLOCK, 3))
     goal_speed = np.empty((BLOCK, 3))
-    # One robot's end: the arrays of a batch of one, reused robot after robot.
-    one = np.zeros(1, dtype=np.int64)
-    th = np.empty((1, 3))
-    sp = np.empty((1, 3))
-    rot = np.empty((1, 3, 3))
-    path = np.empty((substeps + 1, 1, 3))
+    # The ends of a block's robots that completed their period, in one call of
+    # finish: their rows, actions, goals and state, packed in the lanes' order.
+    ended = np.zeros(BLOCK, dtype=np.int64)
+    lane = np.zeros(BLOCK, dtype=np.int64)
+    a_end = np.empty((BLOCK, 3))
+    goal_end = np.empty((BLOCK, 3))
+    speed_end = np.empty((BLOCK, 3))
+    th = np.empty((BLOCK, 3))
+    sp = np.empty((BLOCK, 3))
+    rot = np.empty((BLOCK, 3, 3))
+    path = np.empty((substeps + 1, BLOCK, 3))
+    result = np.empty((BLOCK, out.shape[1]))
+    back = np.zeros(BLOCK, dtype=np.bool_)
     n = rows.shape[0]
     for first in range(0, n, BLOCK):
         lanes = min(BLOCK, n - first)
@@ -414,25 +421,40 @@ def step(
                 _st(S, _SP + j, i, speed[r, j])
             _stm(S, _RR, i, _mat_of(R[r]))
         period(S, P, lanes, position, servo, dt, substeps, f)
+        c = 0
         for i in range(lanes):
             m = first + i
             r = rows[m]
             if _ld(S, _DONE, i) < substeps:
                 handed[m] = True
                 continue
-            _put_mat(rot[0], _ldm(S, _RR, i))
+            ended[c] = r
+            lane[c] = i
+            _put_mat(rot[c], _ldm(S, _RR, i))
             for j in range(3):
-                th[0, j] = _ld(S, _TH + j, i)
-                sp[0, j] = _ld(S, _SP + j, i)
-                path[0, 0, j] = theta[r, j]
+                a_end[c, j] = a[i, j]
+                goal_end[c, j] = start_goal[i, j]
+                speed_end[c, j] = goal_speed[i, j]
+                th[c, j] = _ld(S, _TH + j, i)
+                sp[c, j] = _ld(S, _SP + j, i)
+                path[0, c, j] = theta[r, j]
                 for q in range(1, substeps + 1):
-                    path[q, 0, j] = P[_u((3 * q + j) * BLOCK + i)]
-            one[0] = r
-            finish(one, a[i : i + 1], path[0], th, sp, rot, path, start_goal[i : i + 1],
-                   goal_speed[i : i + 1], theta, speed, R, goal, hold, steps, servo_goal,
-                   servo_speed, position, substeps, motion, flags, weights, low, high, cover,
-                   k, out[m : m + 1], handed[m : m + 1], counts)  # fmt: skip
-            if not handed[m]:
+                    path[q, c, j] = P[_u((3 * q + j) * BLOCK + i)]
+            c += 1
+        if c == 0:
+            continue
+        finish(ended[:c], a_end[:c], path[0, :c], th[:c], sp[:c], rot[:c], path[:, :c],
+               goal_end[:c], speed_end[:c], theta, speed, R, goal, hold, steps, servo_goal,
+               servo_speed, position, substeps, motion, flags, weights, low, high, cover,
+               k, result[:c], back[:c], counts)  # fmt: skip
+        for e in range(c):
+            i = lane[e]
+            m = first + i
+            r = ended[e]
+            handed[m] = back[e]
+            if not back[e]:
+                for j in range(out.shape[1]):
+                    out[m, j] = result[e, j]
                 tq, tq_speed = _ld3(S, _TAU, i), _ld3(S, _TSP, i)
                 for j in range(3):
                     torque[r, j] = tq[j]
