@@ -348,3 +348,20 @@ def test_tracked_counts_are_counted_once(safe: SafeSet, cover_path: Path) -> Non
     lookup.asked, lookup.settled = 100, 50
     counts += [1, 1]
     assert (lookup.asked, lookup.settled) == (101, 51)
+
+
+def test_a_lattice_too_fine_for_floats_is_refused(safe: SafeSet, cover_path: Path) -> None:
+    """The compiled lookup holds a level's keys i * size + j in floats: a level whose
+    keys could pass 2^53 (exact no more) is refused, not looked up wrongly."""
+    lookup = SafeLookup.from_file(safe, cover_path)
+    n = lookup._roots.shape[0]
+    side, size, keys = lookup._levels[0]
+    assert lookup.arrays().size > 0
+    for level in (17, 18):
+        deep = n * 2**level
+        lookup._levels = [(side, size, keys), (side / 2**level, deep, np.array([deep + 1]))]
+        if float(deep) ** 2 > 2.0**53:
+            with pytest.raises(InputError, match="too fine for the compiled lookup"):
+                lookup.arrays(depth=1)
+        else:
+            assert lookup.arrays(depth=1)[-1] == deep + 1

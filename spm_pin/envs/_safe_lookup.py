@@ -133,6 +133,14 @@ class SafeLookup:
         shallow = [(lv, entry[2]) for lv, entry in levels if lv <= depth]
         deep = [entry for lv, entry in levels if lv > depth]
         d = max((lv for lv, keys in shallow if keys.size), default=0)
+        for side, size, _ in deep:  # a key i * size + j in a float: exact below 2^53
+            if float(size) ** 2 > 2.0**53:
+                raise InputError(
+                    f"cover: its cells of side {side:g} deg are too fine for the compiled "
+                    f"lookup (a lattice of {size} cells per side); fill it to a coarser level",
+                    argument="cover",
+                    value=size,
+                )
         eta = np.degrees(np.asarray(self.safe_set.design.eta, dtype=float))
         index, words = self._bitmaps(shallow, d)
         at_words = K.HEADER + n * n
