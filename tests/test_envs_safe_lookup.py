@@ -43,9 +43,9 @@ def _parts(cover: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nd
     at_words, at_table = int(cover[K.WORDS]), int(cover[K.TABLE])
     levels = int(cover[K.LEVELS])
     index = cover[K.HEADER : K.HEADER + n * n].reshape(n, n)
-    table = cover[at_table : at_table + 4 * levels].reshape(levels, 4)
+    table = cover[at_table : at_table + K.TABLE_ROW * levels].reshape(levels, K.TABLE_ROW)
     assert at_words == K.HEADER + n * n
-    return index, cover[at_words:at_table], table, cover[at_table + 4 * levels :]
+    return index, cover[at_words:at_table], table, cover[at_table + K.TABLE_ROW * levels :]
 
 
 @pytest.fixture(scope="module")

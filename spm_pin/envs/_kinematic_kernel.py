@@ -54,9 +54,11 @@ __all__ = [
     "ROOT_SIDE",
     "SAFE",
     "TABLE",
+    "TABLE_ROW",
     "UNSAFE",
     "WORDS",
     "WORD_BITS",
+    "WORD_SHIFT",
     "covered",
     "covered_rows",
     "step",
@@ -80,7 +82,11 @@ HEADER = 8
 GAP12, GAP23, ROOT_SIDE, CELLS, ROOTS, WORDS, LEVELS, TABLE = range(HEADER)
 #: Bits of a bitmap's word (an integer below 2**32 in a float: exact).
 WORD_BITS = 32
-_WORD_SHIFT = 5  # bit >> _WORD_SHIFT: the bit's word
+#: A bit's word is bit >> WORD_SHIFT.
+WORD_SHIFT = WORD_BITS.bit_length() - 1
+#: Entries of a searched level in the cover's table: the cells' side, the lattice
+#: size, where its keys start and where they end.
+TABLE_ROW = 4
 
 #: Verdicts of :func:`_verdict`: outside the joint limits, or (cover only) outside
 #: the certified cells.
@@ -158,15 +164,15 @@ def covered(t0: float, t1: float, t2: float, cover: Cover) -> bool:
         cells_f = cover[CELLS]
         cells = int(cells_f)
         bit = (int(a * cells_f) - i * cells) * cells + (int(b * cells_f) - j * cells)
-        word = int(cover[int(cover[WORDS]) + code + (bit >> _WORD_SHIFT)])
+        word = int(cover[int(cover[WORDS]) + code + (bit >> WORD_SHIFT)])
         if (word >> (bit & (WORD_BITS - 1))) & 1:
             return True
     table = int(cover[TABLE])
     for level in range(int(cover[LEVELS])):
-        side = cover[table + 4 * level]
-        key = math.floor(d12 / side) * cover[table + 4 * level + 1] + math.floor(d23 / side)
-        start, end = int(cover[table + 4 * level + 2]), int(cover[table + 4 * level + 3])
-        if _search(cover, start, end, key):
+        row = table + TABLE_ROW * level
+        side = cover[row]
+        key = math.floor(d12 / side) * cover[row + 1] + math.floor(d23 / side)
+        if _search(cover, int(cover[row + 2]), int(cover[row + 3]), key):
             return True
     return False
 

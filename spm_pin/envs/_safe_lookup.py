@@ -145,7 +145,7 @@ class SafeLookup:
         index, words = self._bitmaps(shallow, d)
         at_words = K.HEADER + n * n
         at_table = at_words + words.size
-        at_keys = at_table + 4 * len(deep)
+        at_keys = at_table + K.TABLE_ROW * len(deep)
         header = np.zeros(K.HEADER)
         header[[K.GAP12, K.GAP23, K.ROOT_SIDE, K.CELLS, K.ROOTS]] = (
             eta[1] - eta[0],
@@ -155,7 +155,7 @@ class SafeLookup:
             n,
         )
         header[[K.WORDS, K.LEVELS, K.TABLE]] = at_words, len(deep), at_table
-        table = np.zeros((len(deep), 4))
+        table = np.zeros((len(deep), K.TABLE_ROW))
         start = at_keys
         for row, (side, size, keys) in enumerate(deep):
             table[row] = side, size, start, start + keys.size
@@ -180,7 +180,6 @@ class SafeLookup:
         index.reshape(-1)[flat] = np.arange(flat.size, dtype=np.int64) * per_root
         index[self._roots] = K.ROOT_COVERED
         words = np.zeros(flat.size * per_root, dtype=np.uint64)
-        shift = K.WORD_BITS.bit_length() - 1
         for lv, i, j in found:
             if i.size == 0:
                 continue
@@ -194,7 +193,7 @@ class SafeLookup:
                     bit = (row + di) * cells + column + dj
                     np.bitwise_or.at(
                         words,
-                        (first + (bit >> shift))[keep],
+                        (first + (bit >> K.WORD_SHIFT))[keep],
                         (np.uint64(1) << (bit & (K.WORD_BITS - 1)).astype(np.uint64))[keep],
                     )
         return index.astype(np.float64), words.astype(np.float64)
