@@ -52,6 +52,7 @@ __all__ = [
     "run_main",
     "standard_parser",
     "target",
+    "time_alternating",
     "time_call",
     "time_each",
     "to_jsonable",
@@ -216,6 +217,47 @@ def time_call(
         elapsed, value = _timed_once(fn)
         samples.append(elapsed)
     return Timed(Timing(tuple(samples)), value)
+
+
+def time_alternating(
+    calls: Mapping[str, tuple[Callable[[], Any], int]], *, windows: int, warmup: int = 1
+) -> tuple[dict[str, Timing], float]:
+    """Time short calls side by side: ``windows`` windows, each running every call
+    ``count`` times back to back (``calls``: name -> (call, count)), the calls' order
+    turned by one from window to window. A slow phase of the machine then slows every
+    call alike, and the samples span the whole run rather than one burst.
+
+    Each call gets ``warmup`` untimed calls first; garbage is collected once, and the
+    samples run with the collector off (as :func:`time_call` with
+    ``collect_each=False``).
+
+    Returns:
+        The pooled samples of each call, and the median over the windows of the
+        first call's median over the second's (NaN with fewer than two calls).
+    """
+    if windows < 1:
+        raise ValueError(f"windows must be >= 1, got {windows}")
+    names = list(calls)
+    if not names or any(count < 1 for _, count in calls.values()):
+        raise ValueError("time_alternating needs calls, each run at least once a window")
+    for call, _ in calls.values():
+        for _ in range(warmup):
+            call()
+    gc.collect()
+    samples: dict[str, list[float]] = {name: [] for name in names}
+    ratios: list[float] = []
+    for window in range(windows):
+        medians: dict[str, float] = {}
+        for k in range(len(names)):
+            name = names[(window + k) % len(names)]
+            call, count = calls[name]
+            taken = [_timed_once(call)[0] for _ in range(count)]
+            samples[name] += taken
+            medians[name] = percentile(taken, 50.0)
+        if len(names) > 1:
+            ratios.append(medians[names[0]] / medians[names[1]])
+    ratio = percentile(ratios, 50.0) if ratios else math.nan
+    return {name: Timing(tuple(values)) for name, values in samples.items()}, ratio
 
 
 def time_each(

@@ -636,13 +636,15 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
             ),
         ]
     if "vector_cover_only" in dynamic:
+        # runs since the side-by-side windows time MuJoCo's single step beside it
+        side = dynamic["single_cover_only"].get("peer")
         rows += [
             timed(
                 "dynamic_single_step_cover_only",
                 "envs: OrientDynamic-v0 single env step, cover_only",
                 dynamic["single_cover_only"],
-                peer_name="MuJoCo env",
-                peer=mj_single,
+                peer_name="MuJoCo env" if side is None else "MuJoCo env, side by side",
+                peer=mj_single if side is None else side,
                 targets=("dynamic_single_step_s",),
             ),
         ]

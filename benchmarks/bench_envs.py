@@ -23,7 +23,14 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    single environment again with the cover of section 7 as their safe set
    (``cover_only``: no collision query in a step); the compiled physics of a batch
    runs on every core the process may use (in chunks of at least 256 robots;
-   ``threads`` in each row), and the cover_only batch once more on one thread.
+   ``threads`` in each row), and the cover_only batch once more on one thread. The
+   single env with cover_only is timed side by side with MuJoCo's single env
+   (``single_cover_only.peer``): 50 windows of 200 of our steps and 20 of MuJoCo's
+   (about as long), in turns, each pooled over the windows, and the median of the
+   windows' ratios (``paired_ratio_ours_vs_peer``). On a shared or throttled CPU the
+   speed changes in phases: 300 steps back to back (6 ms) fall in one of them whole;
+   the windows spread over the section (about half a second), and a slow phase slows
+   both alike.
 5. ``mujoco_peer``: the same task built the usual way on MuJoCo
    (:class:`benchmarks._mujoco_env.MujocoOrientEnv`: the exported MJCF, position
    actuators, ``mj_step`` with ``nstep`` 20 at the same 1 ms step), one environment
@@ -102,6 +109,7 @@ from ._common import (  # noqa: E402
     run_main,
     standard_parser,
     target,
+    time_alternating,
     time_call,
     with_all_pass,
 )
@@ -139,6 +147,9 @@ class Sizes:
     dynamic_batch: int
     dynamic_repeats: int
     dynamic_single_repeats: int
+    side_windows: int  # windows of the single step side by side with MuJoCo's
+    side_ours: int  # our single steps per window
+    side_peer: int  # MuJoCo's single steps per window
     swing_time: float  # [s] of the physics section
     swing_chunk: float  # [s] timed at a time
     cover_level: int  # finest level the cover of the ``cover`` section is filled to
@@ -150,8 +161,11 @@ FULL = Sizes(
     repeats=15,
     single_repeats=300,
     dynamic_batch=4096,
-    dynamic_repeats=5,
+    dynamic_repeats=15,
     dynamic_single_repeats=300,
+    side_windows=50,
+    side_ours=200,
+    side_peer=20,
     swing_time=10.0,
     swing_chunk=1.0,
     cover_level=3,
@@ -164,6 +178,9 @@ QUICK = Sizes(
     dynamic_batch=64,
     dynamic_repeats=3,
     dynamic_single_repeats=5,
+    side_windows=3,
+    side_ours=5,
+    side_peer=2,
     swing_time=0.2,
     swing_chunk=0.05,
     cover_level=0,
@@ -251,10 +268,40 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, A
     }
 
 
-def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
+def side_by_side(sizes: Sizes, ours: OrientDynamicEnv, goals: FloatArray) -> dict[str, Any]:
+    """Our single env step (``ours``) and MuJoCo's (the peer of
+    :func:`bench_mujoco_peer` on ``goals``), timed in alternating windows
+    (:func:`~benchmarks._common.time_alternating`): ours pooled over the windows, with
+    MuJoCo's as ``peer`` and the median of the windows' ratios; ours alone (no
+    ``peer``) without MuJoCo."""
+    ours.reset(seed=SEED)
+    count = sizes.side_windows * sizes.side_ours
+    calls = {"ours": (_stepper(ours, 0, count + 1), sizes.side_ours)}
+    if importlib.util.find_spec("mujoco") is not None:
+        from ._mujoco_env import MujocoOrientEnv
+
+        peer = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
+        peer.reset(seed=SEED)
+        steps = sizes.side_windows * sizes.side_peer
+        calls["mujoco"] = (_stepper(peer, 0, steps + 1), sizes.side_peer)
+    timings, ratio = time_alternating(calls, windows=sizes.side_windows)
+    out: dict[str, Any] = {
+        **timings["ours"].summary(items=1),
+        "n": 1,
+        "windows": sizes.side_windows,
+        "per_window": {name: count for name, (_, count) in calls.items()},
+    }
+    if "mujoco" in timings:
+        out["peer"] = {**timings["mujoco"].summary(items=1), "n": 1}
+        out["paired_ratio_ours_vs_peer"] = ratio
+    return out
+
+
+def bench_dynamic(sizes: Sizes, cover: Path, goals: FloatArray) -> dict[str, Any]:
     """``OrientDynamicVectorEnv`` at N = ``dynamic_batch`` and at the peer's N, and the
     single ``OrientDynamicEnv``, per env step; the batch at N = ``dynamic_batch`` and
-    the single env again with the saved ``cover`` as their safe set (``cover_only``)."""
+    the single env again with the saved ``cover`` as their safe set (``cover_only``),
+    the single env side by side with MuJoCo's on ``goals`` (:func:`side_by_side`)."""
     out: dict[str, Any] = {}
     closure = 0.0
     plain = OrientSettings()
@@ -273,15 +320,15 @@ def bench_dynamic(sizes: Sizes, cover: Path) -> dict[str, Any]:
         )
         out[key] = {**timed.timing.summary(items=n), "n": n, "threads": env.core.chunks(n)}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
-    for key, settings in (("single", plain), ("single_cover_only", only)):
-        single = OrientDynamicEnv(settings, max_steps=10**7)
-        single.reset(seed=SEED)
-        timed = time_call(
-            _stepper(single, 0, sizes.dynamic_single_repeats + 1),
-            repeats=sizes.dynamic_single_repeats,
-            collect_each=False,
-        )
-        out[key] = {**timed.timing.summary(items=1), "n": 1}
+    single = OrientDynamicEnv(plain, max_steps=10**7)
+    single.reset(seed=SEED)
+    timed = time_call(
+        _stepper(single, 0, sizes.dynamic_single_repeats + 1),
+        repeats=sizes.dynamic_single_repeats,
+        collect_each=False,
+    )
+    out["single"] = {**timed.timing.summary(items=1), "n": 1}
+    out["single_cover_only"] = side_by_side(sizes, OrientDynamicEnv(only, max_steps=10**7), goals)
     out["closure_error"] = closure
     out["physics_steps_per_env_step"] = single.core.substeps
     out["actuation"] = single.physics.actuation
@@ -425,7 +472,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     peer["speed_ratio_ours_vs_peer"] = (
         results["vector"]["per_second"] / peer["per_second"] if peer["per_second"] else None
     )
-    dynamic = bench_dynamic(sizes, cover_path)
+    dynamic = bench_dynamic(sizes, cover_path, vector.core.goal[:PEER_GOALS].copy())
     folder.cleanup()
     mujoco_peer = bench_mujoco_peer(sizes, vector.core.goal[:PEER_GOALS].copy())
     if mujoco_peer["available"]:
@@ -531,13 +578,16 @@ def report(payload: dict[str, Any]) -> str:
             dynamic["vector_cover_only_one_thread"],
         ),
         ("OrientDynamicEnv, one step", dynamic["single"]),
-        ("OrientDynamicEnv, cover_only, one step", dynamic["single_cover_only"]),
+        ("OrientDynamicEnv, cover_only, one step (side by side)", dynamic["single_cover_only"]),
     ]
     if mj["available"]:
         cases += [
             (f"peer: MuJoCo env, SyncVectorEnv, N = {mj['vector']['n']}", mj["vector"]),
             ("peer: MuJoCo env, one step", mj["single"]),
         ]
+    side = dynamic["single_cover_only"]
+    if "peer" in side:
+        cases.append(("peer: MuJoCo env, one step (side by side)", side["peer"]))
     for label, entry in cases:
         rows.append(
             [
@@ -572,6 +622,12 @@ def report(payload: dict[str, Any]) -> str:
     ratio = peer["speed_ratio_ours_vs_peer"]
     notes = [
         f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s",
+        f"one dynamic env step (cover_only) side by side with MuJoCo's: "
+        f"{side['windows']} windows of "
+        + " and ".join(f"{count} ({name})" for name, count in side["per_window"].items())
+        + " steps, pooled; median of the "
+        f"windows' time ratios (ours / MuJoCo's): "
+        f"{side.get('paired_ratio_ours_vs_peer', math.nan):.3f}",
         f"cover of level {cover['cover_level']}: filled in {cover['fill_s']:.1f} s, "
         f"{cover['file_bytes'] / 1e6:.2f} MB, loaded in {cover['load_s']:.2f} s; the lookup "
         f"settled {100 * cover['settled_fraction']:.1f}% of {cover['checks']:,} safety "

@@ -160,6 +160,35 @@ def test_common_statistics_and_json(tmp_path: Path) -> None:
     assert json.loads(out.read_text()) == {"a": None, "b": [1, 2]}
 
 
+def test_time_alternating_turns_the_order_and_pairs_the_windows(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    log: list[str] = []
+
+    def fake(fn: Any) -> tuple[float, Any]:
+        name = fn()
+        log.append(name)
+        window = (len(log) - 1) // 5  # 3 calls of a and 2 of b per window
+        # b takes 2 us; a takes 6 us in even windows, 10 us in odd ones
+        return ({"a": 10e-6 if window % 2 else 6e-6, "b": 2e-6}[name], name)
+
+    def call(name: str) -> Any:
+        return lambda: name
+
+    monkeypatch.setattr(_common, "_timed_once", fake)
+    calls = {"a": (call("a"), 3), "b": (call("b"), 2)}
+    timings, ratio = _common.time_alternating(calls, windows=4, warmup=0)
+    assert [len(timings[k].samples) for k in "ab"] == [12, 8]
+    # window 0: a then b; window 1: b then a; the order turns each window
+    assert log[:5] == ["a"] * 3 + ["b"] * 2 and log[5:10] == ["b"] * 2 + ["a"] * 3
+    assert sorted(set(timings["a"].samples)) == [6e-6, 10e-6]
+    assert ratio == pytest.approx(4.0)  # the median of the windows' 3, 5, 3 and 5
+    with pytest.raises(ValueError, match="windows"):
+        _common.time_alternating(calls, windows=0)
+    with pytest.raises(ValueError, match="at least once"):
+        _common.time_alternating({"a": (call("a"), 0)}, windows=1)
+
+
 def test_quick_calibration_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from benchmarks import bench_calibration
 
