@@ -220,7 +220,11 @@ def time_call(
 
 
 def time_alternating(
-    calls: Mapping[str, tuple[Callable[[], Any], int]], *, windows: int, warmup: int = 1
+    calls: Mapping[str, tuple[Callable[[], Any], int]],
+    *,
+    windows: int,
+    warmup: int = 1,
+    collect_each: bool = False,
 ) -> tuple[dict[str, Timing], float]:
     """Time short calls side by side: ``windows`` windows, each running every call
     ``count`` times back to back (``calls``: name -> (call, count)), the calls' order
@@ -228,8 +232,8 @@ def time_alternating(
     call alike, and the samples span the whole run rather than one burst.
 
     Each call gets ``warmup`` untimed calls first; garbage is collected once, and the
-    samples run with the collector off (as :func:`time_call` with
-    ``collect_each=False``).
+    samples run with the collector off; ``collect_each``: collected before every
+    sample too (as :func:`time_call` takes it).
 
     Returns:
         The pooled samples of each call, and the median over the windows of the
@@ -251,7 +255,11 @@ def time_alternating(
         for k in range(len(names)):
             name = names[(window + k) % len(names)]
             call, count = calls[name]
-            taken = [_timed_once(call)[0] for _ in range(count)]
+            taken = []
+            for _ in range(count):
+                if collect_each:
+                    gc.collect()
+                taken.append(_timed_once(call)[0])
             samples[name] += taken
             medians[name] = percentile(taken, 50.0)
         if len(names) > 1:

@@ -572,8 +572,8 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
                 f"(N = {cover['cover_only']['n']:,})",
                 cover["cover_only"],
                 per_item=True,
-                peer_name=f"SyncVectorEnv, N = {peer['n']}",
-                peer=peer,
+                peer_name=f"SyncVectorEnv, N = {peer['n']}" + _beside(cover["cover_only"]),
+                peer=cover["cover_only"].get("peer", peer),
                 targets=("vector_cover_only_steps_per_second",),
             ),
         ]
@@ -618,8 +618,10 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
                 f"(N = {dynamic['vector_cover_only']['n']:,})",
                 dynamic["vector_cover_only"],
                 per_item=True,
-                peer_name=mj_name,
-                peer=mj_vector,
+                peer_name=None
+                if mj_name is None
+                else mj_name + _beside(dynamic["vector_cover_only"]),
+                peer=dynamic["vector_cover_only"].get("peer", mj_vector),
                 targets=("dynamic_vector_steps_per_second",),
             ),
         ]
@@ -636,15 +638,13 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
             ),
         ]
     if "vector_cover_only" in dynamic:
-        # runs since the side-by-side windows time MuJoCo's single step beside it
-        side = dynamic["single_cover_only"].get("peer")
         rows += [
             timed(
                 "dynamic_single_step_cover_only",
                 "envs: OrientDynamic-v0 single env step, cover_only",
                 dynamic["single_cover_only"],
-                peer_name="MuJoCo env" if side is None else "MuJoCo env, side by side",
-                peer=mj_single if side is None else side,
+                peer_name="MuJoCo env" + _beside(dynamic["single_cover_only"]),
+                peer=dynamic["single_cover_only"].get("peer", mj_single),
                 targets=("dynamic_single_step_s",),
             ),
         ]
@@ -687,6 +687,12 @@ def figures_envs(data: Mapping[str, Any]) -> list[Figure]:
         ),
     ]
     return rows
+
+
+def _beside(entry: Mapping[str, Any]) -> str:
+    """What a peer's name adds when the row timed it side by side (runs since the
+    targets' rows alternate with their peer's in windows): ", side by side"."""
+    return ", side by side" if "peer" in entry else ""
 
 
 def figures_optimize(data: Mapping[str, Any]) -> list[Figure]:

@@ -23,14 +23,7 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    single environment again with the cover of section 7 as their safe set
    (``cover_only``: no collision query in a step); the compiled physics of a batch
    runs on every core the process may use (in chunks of at least 256 robots;
-   ``threads`` in each row), and the cover_only batch once more on one thread. The
-   single env with cover_only is timed side by side with MuJoCo's single env
-   (``single_cover_only.peer``): 50 windows of 200 of our steps and 20 of MuJoCo's
-   (about as long), in turns, each pooled over the windows, and the median of the
-   windows' ratios (``paired_ratio_ours_vs_peer``). On a shared or throttled CPU the
-   speed changes in phases: 300 steps back to back (6 ms) fall in one of them whole;
-   the windows spread over the section (about half a second), and a slow phase slows
-   both alike.
+   ``threads`` in each row), and the cover_only batch once more on one thread.
 5. ``mujoco_peer``: the same task built the usual way on MuJoCo
    (:class:`benchmarks._mujoco_env.MujocoOrientEnv`: the exported MJCF, position
    actuators, ``mj_step`` with ``nstep`` 20 at the same 1 ms step), one environment
@@ -50,7 +43,16 @@ What is measured (the prototype, random starts and goals, seeded random actions,
    same with ``cover_only=True`` (the certified cells are the safe set: no collision
    check in a step), and how much of the safe set the cells hold (random safe
    inputs, safe grid vertices).
-8. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
+8. The targets' rows are timed side by side with a peer (:func:`side_by_side`): in
+   alternating windows, about as long for each, each pooled over the windows, with
+   the median of the windows' ratios (``peer``, ``paired_ratio_ours_vs_peer``). The
+   kinematic cover_only batch beside ``SyncVectorEnv`` (20 windows of 5 calls and 1),
+   the dynamic one beside MuJoCo's ``SyncVectorEnv`` (20 windows of 1 and 1), the
+   dynamic single step beside MuJoCo's (50 windows of 200 steps and 20). On a shared
+   or throttled CPU the speed changes in phases: 300 steps back to back (6 ms) fall
+   in one of them whole; the windows spread over seconds, and a slow phase slows
+   both alike.
+9. ``targets``: the kinematic environment's >= 1,000,000 env steps/s batched
    (N = 4096, one core), without a cover, with the cover, and with cover_only; the
    dynamic environment's >= 200,000 env steps/s batched (N = 4096) and one env step
    <= 20 us, both with cover_only (its fastest safety check; section 4 has them
@@ -147,9 +149,11 @@ class Sizes:
     dynamic_batch: int
     dynamic_repeats: int
     dynamic_single_repeats: int
-    side_windows: int  # windows of the single step side by side with MuJoCo's
-    side_ours: int  # our single steps per window
-    side_peer: int  # MuJoCo's single steps per window
+    # side by side with a peer (:func:`side_by_side`): (windows, our calls per window,
+    # the peer's calls per window) of the targets' rows
+    side_kinematic: tuple[int, int, int]  # the cover_only batch, SyncVectorEnv
+    side_dynamic: tuple[int, int, int]  # the dynamic cover_only batch, MuJoCo's batch
+    side_single: tuple[int, int, int]  # the dynamic cover_only single step, MuJoCo's
     swing_time: float  # [s] of the physics section
     swing_chunk: float  # [s] timed at a time
     cover_level: int  # finest level the cover of the ``cover`` section is filled to
@@ -163,9 +167,9 @@ FULL = Sizes(
     dynamic_batch=4096,
     dynamic_repeats=15,
     dynamic_single_repeats=300,
-    side_windows=50,
-    side_ours=200,
-    side_peer=20,
+    side_kinematic=(20, 5, 1),
+    side_dynamic=(20, 1, 1),
+    side_single=(50, 200, 20),
     swing_time=10.0,
     swing_chunk=1.0,
     cover_level=3,
@@ -178,9 +182,9 @@ QUICK = Sizes(
     dynamic_batch=64,
     dynamic_repeats=3,
     dynamic_single_repeats=5,
-    side_windows=3,
-    side_ours=5,
-    side_peer=2,
+    side_kinematic=(2, 2, 1),
+    side_dynamic=(2, 1, 1),
+    side_single=(3, 5, 2),
     swing_time=0.2,
     swing_chunk=0.05,
     cover_level=0,
@@ -210,11 +214,15 @@ def closure_error(theta: FloatArray, R: FloatArray, design: spm.SPMDesign) -> fl
     return float(np.abs(np.einsum("nki,nki->nk", w, v) - math.cos(design.alpha2)).max())
 
 
-def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, Any]:
+def bench_cover(
+    sizes: Sizes, plain: OrientVectorEnv, path: Path, peer: Any, n_peer: int
+) -> dict[str, Any]:
     """``OrientVectorEnv`` with a cover filled to ``cover_level`` and saved, per env
     step, stepped with the same episodes and actions as ``plain`` (already stepped by
     :func:`time_call` with ``repeats``): the fill time, the file's size, the fraction
-    of the safety checks the lookup settled, the same states as ``plain``."""
+    of the safety checks the lookup settled, the same states as ``plain``; the same
+    with ``cover_only``, side by side with ``peer`` (``n_peer`` environments:
+    :func:`side_by_side`)."""
     settings = OrientSettings()
     cover = SafeCover(safe_set_of(settings.the_design, settings.plan_settings))
     start = time.perf_counter()
@@ -231,7 +239,7 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, A
     lookup = env.core.lookup
     assert lookup is not None
     only.reset(seed=SEED)
-    timed_only = time_call(_stepper(only, sizes.batch, sizes.repeats + 1), repeats=sizes.repeats)
+    timed_only = side_by_side(only, sizes.batch, peer, n_peer, sizes.side_kinematic)
     # How much of the safe set the certified cells hold: random inputs, checked.
     rng = np.random.default_rng(SEED)
     theta = rng.uniform(-math.pi, math.pi, size=(CERTIFIED_SAMPLES, 3))
@@ -246,8 +254,7 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, A
         "compiled": bool(env.core.fused),
         "rows_stepped_by_numpy": env.core.handed_rows,
         "cover_only": {
-            **timed_only.timing.summary(items=sizes.batch),
-            "n": sizes.batch,
+            **timed_only,
             "compiled": bool(only.core.fused),
             "rows_stepped_by_numpy": only.core.handed_rows,
             "safe_vertices_kept": only.core.vertices.shape[0] / env.core.vertices.shape[0],
@@ -268,33 +275,53 @@ def bench_cover(sizes: Sizes, plain: OrientVectorEnv, path: Path) -> dict[str, A
     }
 
 
-def side_by_side(sizes: Sizes, ours: OrientDynamicEnv, goals: FloatArray) -> dict[str, Any]:
-    """Our single env step (``ours``) and MuJoCo's (the peer of
-    :func:`bench_mujoco_peer` on ``goals``), timed in alternating windows
-    (:func:`~benchmarks._common.time_alternating`): ours pooled over the windows, with
-    MuJoCo's as ``peer`` and the median of the windows' ratios; ours alone (no
-    ``peer``) without MuJoCo."""
-    ours.reset(seed=SEED)
-    count = sizes.side_windows * sizes.side_ours
-    calls = {"ours": (_stepper(ours, 0, count + 1), sizes.side_ours)}
-    if importlib.util.find_spec("mujoco") is not None:
-        from ._mujoco_env import MujocoOrientEnv
-
-        peer = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
-        peer.reset(seed=SEED)
-        steps = sizes.side_windows * sizes.side_peer
-        calls["mujoco"] = (_stepper(peer, 0, steps + 1), sizes.side_peer)
-    timings, ratio = time_alternating(calls, windows=sizes.side_windows)
+def side_by_side(
+    ours: Any, n: int, peer: Any | None, n_peer: int, side: tuple[int, int, int]
+) -> dict[str, Any]:
+    """Steps of ``ours`` (n robots; 0: a single env) and of ``peer`` (``n_peer``) timed
+    in alternating windows (:func:`~benchmarks._common.time_alternating`; ``side``:
+    windows, our calls and the peer's per window; a garbage collection before each
+    sample of a batch): ours pooled over the windows, per env step, with the peer's
+    as ``peer`` and the median of the windows' ratios of the time per env step
+    (``paired_ratio_ours_vs_peer``); ours alone without a peer."""
+    windows, count, count_peer = side
+    items, items_peer = max(n, 1), max(n_peer, 1)
+    calls = {"ours": (_stepper(ours, n, windows * count + 1), count)}
+    if peer is not None:
+        calls["peer"] = (_stepper(peer, n_peer, windows * count_peer + 1), count_peer)
+    timings, ratio = time_alternating(calls, windows=windows, collect_each=n > 0)
     out: dict[str, Any] = {
-        **timings["ours"].summary(items=1),
-        "n": 1,
-        "windows": sizes.side_windows,
-        "per_window": {name: count for name, (_, count) in calls.items()},
+        **timings["ours"].summary(items=items),
+        "n": items,
+        "windows": windows,
+        "per_window": {name: calls_ for name, (_, calls_) in calls.items()},
     }
-    if "mujoco" in timings:
-        out["peer"] = {**timings["mujoco"].summary(items=1), "n": 1}
-        out["paired_ratio_ours_vs_peer"] = ratio
+    if peer is not None:
+        out["peer"] = {**timings["peer"].summary(items=items_peer), "n": items_peer}
+        out["paired_ratio_ours_vs_peer"] = ratio * items_peer / items
     return out
+
+
+def _mujoco(goals: FloatArray) -> Any | None:
+    """The MuJoCo peer's single env on ``goals``, reset; None without MuJoCo."""
+    if importlib.util.find_spec("mujoco") is None:
+        return None
+    from ._mujoco_env import MujocoOrientEnv
+
+    env = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
+    env.reset(seed=SEED)
+    return env
+
+
+def _mujoco_vector(goals: FloatArray, n: int) -> Any | None:
+    """``SyncVectorEnv`` over ``n`` copies of :func:`_mujoco`'s env, reset; None
+    without MuJoCo."""
+    copies = [env for env in (_mujoco(goals) for _ in range(n)) if env is not None]
+    if not copies:
+        return None
+    vector = gymnasium.vector.SyncVectorEnv([_returning(env) for env in copies])
+    vector.reset(seed=SEED)
+    return vector
 
 
 def bench_dynamic(sizes: Sizes, cover: Path, goals: FloatArray) -> dict[str, Any]:
@@ -315,10 +342,15 @@ def bench_dynamic(sizes: Sizes, cover: Path, goals: FloatArray) -> dict[str, Any
         env = OrientDynamicVectorEnv(n, settings)
         env.core.threads = threads
         env.reset(seed=SEED)
-        timed = time_call(
-            _stepper(env, n, sizes.dynamic_repeats + 1), repeats=sizes.dynamic_repeats
-        )
-        out[key] = {**timed.timing.summary(items=n), "n": n, "threads": env.core.chunks(n)}
+        if key == "vector_cover_only":  # the target's row: beside MuJoCo's batch
+            peer = _mujoco_vector(goals, sizes.peer_batch)
+            timing = side_by_side(env, n, peer, sizes.peer_batch, sizes.side_dynamic)
+        else:
+            timed = time_call(
+                _stepper(env, n, sizes.dynamic_repeats + 1), repeats=sizes.dynamic_repeats
+            )
+            timing = {**timed.timing.summary(items=n), "n": n}
+        out[key] = {**timing, "threads": env.core.chunks(n)}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
     single = OrientDynamicEnv(plain, max_steps=10**7)
     single.reset(seed=SEED)
@@ -328,7 +360,9 @@ def bench_dynamic(sizes: Sizes, cover: Path, goals: FloatArray) -> dict[str, Any
         collect_each=False,
     )
     out["single"] = {**timed.timing.summary(items=1), "n": 1}
-    out["single_cover_only"] = side_by_side(sizes, OrientDynamicEnv(only, max_steps=10**7), goals)
+    ours = OrientDynamicEnv(only, max_steps=10**7)
+    ours.reset(seed=SEED)
+    out["single_cover_only"] = side_by_side(ours, 0, _mujoco(goals), 0, sizes.side_single)
     out["closure_error"] = closure
     out["physics_steps_per_env_step"] = single.core.substeps
     out["actuation"] = single.physics.actuation
@@ -343,12 +377,9 @@ def _returning(env: gymnasium.Env[Any, Any]) -> Callable[[], gymnasium.Env[Any, 
 def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
     """The task on MuJoCo built the usual way, one env and ``SyncVectorEnv`` of
     ``peer_batch`` copies, per env step; unavailable without MuJoCo."""
-    if importlib.util.find_spec("mujoco") is None:
+    single = _mujoco(goals)
+    if single is None:
         return {"available": False, "reason": "mujoco is not installed"}
-    from ._mujoco_env import MujocoOrientEnv
-
-    single = MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7)
-    single.reset(seed=SEED)
     timed = time_call(
         _stepper(single, 0, sizes.single_repeats + 1),
         repeats=sizes.single_repeats,
@@ -363,12 +394,11 @@ def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
         "single": {**timed.timing.summary(items=1), "n": 1},
     }
     n = sizes.peer_batch
-    copies = [MujocoOrientEnv(goals, physics_dt=DT, max_steps=10**7) for _ in range(n)]
-    vector = gymnasium.vector.SyncVectorEnv([_returning(env) for env in copies])
-    vector.reset(seed=SEED)
+    vector = _mujoco_vector(goals, n)
+    assert vector is not None
     timed = time_call(_stepper(vector, n, sizes.repeats + 1), repeats=sizes.repeats)
     out["vector"] = {**timed.timing.summary(items=n), "n": n}
-    out["closure_error"] = max(env.closure_residual() for env in [single, *copies])
+    out["closure_error"] = max(env.closure_residual() for env in [single, *vector.envs])
     return out
 
 
@@ -447,7 +477,11 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     results["vector"] = {**timed.timing.summary(items=sizes.batch), "n": sizes.batch}
     folder = tempfile.TemporaryDirectory()
     cover_path = Path(folder.name) / "cover.npz"
-    cover = bench_cover(sizes, vector, cover_path)
+    peer_env = gymnasium.vector.SyncVectorEnv(
+        [lambda: OrientEnv(max_steps=10**7) for _ in range(sizes.peer_batch)]
+    )
+    peer_env.reset(seed=SEED)
+    cover = bench_cover(sizes, vector, cover_path, peer_env, sizes.peer_batch)
     cover["speed_ratio_vs_without"] = results["vector"]["median_s"] / cover["median_s"]
     single = OrientEnv(max_steps=10**7)
     single.reset(seed=SEED)
@@ -457,10 +491,6 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
         collect_each=False,
     )
     results["single"] = {**timed.timing.summary(items=1), "n": 1}
-    peer_env = gymnasium.vector.SyncVectorEnv(
-        [lambda: OrientEnv(max_steps=10**7) for _ in range(sizes.peer_batch)]
-    )
-    peer_env.reset(seed=SEED)
     timed = time_call(
         _stepper(peer_env, sizes.peer_batch, sizes.repeats + 1), repeats=sizes.repeats
     )
@@ -578,16 +608,21 @@ def report(payload: dict[str, Any]) -> str:
             dynamic["vector_cover_only_one_thread"],
         ),
         ("OrientDynamicEnv, one step", dynamic["single"]),
-        ("OrientDynamicEnv, cover_only, one step (side by side)", dynamic["single_cover_only"]),
+        ("OrientDynamicEnv, cover_only, one step", dynamic["single_cover_only"]),
     ]
     if mj["available"]:
         cases += [
             (f"peer: MuJoCo env, SyncVectorEnv, N = {mj['vector']['n']}", mj["vector"]),
             ("peer: MuJoCo env, one step", mj["single"]),
         ]
-    side = dynamic["single_cover_only"]
-    if "peer" in side:
-        cases.append(("peer: MuJoCo env, one step (side by side)", side["peer"]))
+    sides = (
+        ("cover_only batch", f"SyncVectorEnv, N = {peer['n']}", cover["cover_only"]),
+        ("dynamic cover_only batch", "MuJoCo env, SyncVectorEnv", dynamic["vector_cover_only"]),
+        ("dynamic cover_only step", "MuJoCo env, one step", dynamic["single_cover_only"]),
+    )
+    for _, name, side in sides:
+        if "peer" in side:
+            cases.append((f"peer: {name} (side by side)", side["peer"]))
     for label, entry in cases:
         rows.append(
             [
@@ -622,12 +657,13 @@ def report(payload: dict[str, Any]) -> str:
     ratio = peer["speed_ratio_ours_vs_peer"]
     notes = [
         f"batched vs SyncVectorEnv: {ratio:.1f}x more env steps/s",
-        f"one dynamic env step (cover_only) side by side with MuJoCo's: "
-        f"{side['windows']} windows of "
-        + " and ".join(f"{count} ({name})" for name, count in side["per_window"].items())
-        + " steps, pooled; median of the "
-        f"windows' time ratios (ours / MuJoCo's): "
-        f"{side.get('paired_ratio_ours_vs_peer', math.nan):.3f}",
+        *(
+            f"{what} side by side with its peer: {side['windows']} windows of "
+            + " and ".join(f"{count} ({who})" for who, count in side["per_window"].items())
+            + " calls, pooled; ours faster by the median of the windows' ratios: "
+            f"{1.0 / side.get('paired_ratio_ours_vs_peer', math.nan):,.1f}x"
+            for what, _, side in sides
+        ),
         f"cover of level {cover['cover_level']}: filled in {cover['fill_s']:.1f} s, "
         f"{cover['file_bytes'] / 1e6:.2f} MB, loaded in {cover['load_s']:.2f} s; the lookup "
         f"settled {100 * cover['settled_fraction']:.1f}% of {cover['checks']:,} safety "

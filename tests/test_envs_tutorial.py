@@ -94,4 +94,16 @@ def test_quick_benchmark_compares_with_mujoco_and_the_simulator(tmp_path: Path) 
     keys = {f.key: f for f in analysis.figures}
     assert {"dynamic_vector_step", "dynamic_single_step", "reduced_closure"} <= set(keys)
     assert keys["dynamic_single_step"].peer_name == "MuJoCo env"
+    # the targets' rows: timed in windows side by side with their peers
+    quick = bench_envs.QUICK
+    for entry, (windows, ours, theirs) in (
+        (data["cover"]["cover_only"], quick.side_kinematic),
+        (dynamic["vector_cover_only"], quick.side_dynamic),
+        (dynamic["single_cover_only"], quick.side_single),
+    ):
+        assert entry["windows"] == windows
+        assert entry["samples"] == windows * ours and entry["peer"]["samples"] == windows * theirs
+        assert entry["paired_ratio_ours_vs_peer"] > 0
+    assert dynamic["vector_cover_only"]["peer"]["n"] == mj["vector"]["n"]
+    assert keys["dynamic_single_step_cover_only"].peer_name == "MuJoCo env, side by side"
     assert keys["reduced_step"].peer_name == "constrained Simulator"
