@@ -206,6 +206,16 @@ def _stepper(env: Any, n: int, calls: int) -> Any:
     return step
 
 
+def timed_steps(env: Any, n: int, repeats: int) -> dict[str, Any]:
+    """``repeats`` timed steps of ``env`` (n robots; 0: a single env) by
+    :func:`_stepper`, after one warm-up step: their summary per env step and ``n`` (1
+    for a single env). A batch's samples each follow a garbage collection; a single
+    env's run back to back (see the module)."""
+    items = max(n, 1)
+    timed = time_call(_stepper(env, n, repeats + 1), repeats=repeats, collect_each=n > 0)
+    return {**timed.timing.summary(items=items), "n": items}
+
+
 def closure_error(theta: FloatArray, R: FloatArray, design: spm.SPMDesign) -> float:
     """Largest |w_i(theta) . R v_i0 - cos(alpha2)| [rad-like] over robots (n, 3) with
     platform rotations R (n, 3, 3): how far the states are from closing the loops."""
@@ -235,7 +245,7 @@ def bench_cover(
     load_s = time.perf_counter() - start
     only = OrientVectorEnv(sizes.batch, settings, cover=str(path), cover_only=True)
     env.reset(seed=SEED)
-    timed = time_call(_stepper(env, sizes.batch, sizes.repeats + 1), repeats=sizes.repeats)
+    timed = timed_steps(env, sizes.batch, sizes.repeats)
     lookup = env.core.lookup
     assert lookup is not None
     only.reset(seed=SEED)
@@ -250,7 +260,7 @@ def bench_cover(
         float(np.abs(env.core.R - plain.core.R).max()),
     )
     return {
-        **timed.timing.summary(items=sizes.batch),
+        **timed,
         "compiled": bool(env.core.fused),
         "rows_stepped_by_numpy": env.core.handed_rows,
         "cover_only": {
@@ -262,7 +272,6 @@ def bench_cover(
             "safe_inputs_drawn": int(np.count_nonzero(safe)),
         },
         "states_max_difference": difference,
-        "n": sizes.batch,
         "cover_level": sizes.cover_level,
         "fill_s": fill_s,
         "load_s": load_s,
@@ -346,20 +355,12 @@ def bench_dynamic(sizes: Sizes, cover: Path, goals: FloatArray) -> dict[str, Any
             peer = _mujoco_vector(goals, sizes.peer_batch)
             timing = side_by_side(env, n, peer, sizes.peer_batch, sizes.side_dynamic)
         else:
-            timed = time_call(
-                _stepper(env, n, sizes.dynamic_repeats + 1), repeats=sizes.dynamic_repeats
-            )
-            timing = {**timed.timing.summary(items=n), "n": n}
+            timing = timed_steps(env, n, sizes.dynamic_repeats)
         out[key] = {**timing, "threads": env.core.chunks(n)}
         closure = max(closure, closure_error(env.core.theta, env.core.R, env.core.design))
     single = OrientDynamicEnv(plain, max_steps=10**7)
     single.reset(seed=SEED)
-    timed = time_call(
-        _stepper(single, 0, sizes.dynamic_single_repeats + 1),
-        repeats=sizes.dynamic_single_repeats,
-        collect_each=False,
-    )
-    out["single"] = {**timed.timing.summary(items=1), "n": 1}
+    out["single"] = timed_steps(single, 0, sizes.dynamic_single_repeats)
     ours = OrientDynamicEnv(only, max_steps=10**7)
     ours.reset(seed=SEED)
     out["single_cover_only"] = side_by_side(ours, 0, _mujoco(goals), 0, sizes.side_single)
@@ -380,24 +381,18 @@ def bench_mujoco_peer(sizes: Sizes, goals: FloatArray) -> dict[str, Any]:
     single = _mujoco(goals)
     if single is None:
         return {"available": False, "reason": "mujoco is not installed"}
-    timed = time_call(
-        _stepper(single, 0, sizes.single_repeats + 1),
-        repeats=sizes.single_repeats,
-        collect_each=False,
-    )
     out: dict[str, Any] = {
         "available": True,
         "method": "MujocoOrientEnv (benchmarks/_mujoco_env.py): urdf/spm.xml with position "
         f"actuators, mj_step nstep={single.frame_skip} at {DT:g} s per env step; "
         "gymnasium.vector.SyncVectorEnv over N copies",
         "physics_steps_per_env_step": single.frame_skip,
-        "single": {**timed.timing.summary(items=1), "n": 1},
+        "single": timed_steps(single, 0, sizes.single_repeats),
     }
     n = sizes.peer_batch
     vector = _mujoco_vector(goals, n)
     assert vector is not None
-    timed = time_call(_stepper(vector, n, sizes.repeats + 1), repeats=sizes.repeats)
-    out["vector"] = {**timed.timing.summary(items=n), "n": n}
+    out["vector"] = timed_steps(vector, n, sizes.repeats)
     out["closure_error"] = max(env.closure_residual() for env in [single, *vector.envs])
     return out
 
@@ -473,8 +468,7 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     results: dict[str, dict[str, Any]] = {}
     vector = OrientVectorEnv(sizes.batch)
     vector.reset(seed=SEED)
-    timed = time_call(_stepper(vector, sizes.batch, sizes.repeats + 1), repeats=sizes.repeats)
-    results["vector"] = {**timed.timing.summary(items=sizes.batch), "n": sizes.batch}
+    results["vector"] = timed_steps(vector, sizes.batch, sizes.repeats)
     folder = tempfile.TemporaryDirectory()
     cover_path = Path(folder.name) / "cover.npz"
     peer_env = gymnasium.vector.SyncVectorEnv(
@@ -485,18 +479,9 @@ def run(sizes: Sizes, *, quick: bool) -> dict[str, Any]:
     cover["speed_ratio_vs_without"] = results["vector"]["median_s"] / cover["median_s"]
     single = OrientEnv(max_steps=10**7)
     single.reset(seed=SEED)
-    timed = time_call(
-        _stepper(single, 0, sizes.single_repeats + 1),
-        repeats=sizes.single_repeats,
-        collect_each=False,
-    )
-    results["single"] = {**timed.timing.summary(items=1), "n": 1}
-    timed = time_call(
-        _stepper(peer_env, sizes.peer_batch, sizes.repeats + 1), repeats=sizes.repeats
-    )
+    results["single"] = timed_steps(single, 0, sizes.single_repeats)
     peer = {
-        **timed.timing.summary(items=sizes.peer_batch),
-        "n": sizes.peer_batch,
+        **timed_steps(peer_env, sizes.peer_batch, sizes.repeats),
         "method": "gymnasium.vector.SyncVectorEnv over single OrientEnv objects",
     }
     peer["speed_ratio_ours_vs_peer"] = (
