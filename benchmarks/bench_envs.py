@@ -648,6 +648,7 @@ def report(payload: dict[str, Any]) -> str:
             + " calls, pooled; ours faster by the median of the windows' ratios: "
             f"{1.0 / side.get('paired_ratio_ours_vs_peer', math.nan):,.1f}x"
             for what, _, side in sides
+            if "peer" in side  # the peer may be missing (MuJoCo not installed)
         ),
         f"cover of level {cover['cover_level']}: filled in {cover['fill_s']:.1f} s, "
         f"{cover['file_bytes'] / 1e6:.2f} MB, loaded in {cover['load_s']:.2f} s; the lookup "

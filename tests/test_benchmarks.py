@@ -238,6 +238,12 @@ def test_quick_envs_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert only["n"] == 256 and only["per_second"] > 0
     assert 0.0 < only["safe_inputs_certified"] < 1.0 and 0.0 < only["safe_vertices_kept"] < 1.0
     assert set(data["targets"]) == {"all_pass"}  # the 4096 target: full runs only
+    # a row without its side-by-side peer (MuJoCo missing): no ratio line, no NaN
+    side = data["dynamic"]["single_cover_only"]
+    side.pop("peer", None), side.pop("paired_ratio_ours_vs_peer", None)
+    text = bench_envs.report(data)
+    assert "nanx" not in text and "dynamic cover_only step side by side" not in text
+    assert "cover_only batch side by side with its peer" in text
 
 
 def test_quick_optimize_benchmark(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
