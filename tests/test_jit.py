@@ -411,21 +411,20 @@ def test_each_kernel_tuple_lists_its_callees_before_their_callers() -> None:
     of the functions compiled before it: a callee missing from the tuple is compiled
     only if another tuple came first in the process (an inlined callee then fails to
     type). So each tuple holds every kernel its functions call, callees first; the
-    blocks' tuple (compiled after the dynamic one) may call the dynamic one's."""
+    blocks' tuple (compiled after the dynamic one) may call the dynamic one's. The
+    modules are every module of the package whose source defines ``KERNELS = (``."""
     import importlib
+    from pathlib import Path
 
-    names = [
-        "spm_pin.collision._configuration",
-        "spm_pin.dynamics._tuple_kernel",
-        "spm_pin.dynamics._reduced_kernel",
-        "spm_pin.envs._kinematic_kernel",
-        "spm_pin.envs._dynamic_kernel",
-        "spm_pin.envs._observe_kernel",
-        "spm_pin.envs._block_kernel",
-        "spm_pin.hardware._kernel",
-        "spm_pin.kinematics._fk_single",
-        "spm_pin.kinematics._scalar",
-    ]
+    package = Path(spm.__file__).parent
+    names = sorted(
+        "spm_pin." + ".".join(path.relative_to(package).with_suffix("").parts)
+        for path in package.rglob("*.py")
+        if "\nKERNELS = (" in path.read_text(encoding="utf-8")
+    )
+    known = {"spm_pin.envs._dynamic_kernel", "spm_pin.envs._block_kernel"}
+    assert known <= set(names) and "spm_pin.kinematics._scalar" in names
+    assert "spm_pin.envs._believed_kernel" in names and len(names) >= 11
     tuples = {name: importlib.import_module(name).KERNELS for name in names}
     every = {id(function) for functions in tuples.values() for function in functions}
     earlier = {"spm_pin.envs._block_kernel": tuples["spm_pin.envs._dynamic_kernel"]}

@@ -13,7 +13,8 @@ Importing this package registers, with Gymnasium:
   :class:`OrientDynamicVectorEnv`.
 
 Options: :class:`OrientSettings` (design, servo limits, goal sampling, safety mode,
-reward weights :class:`RewardWeights`, observation noise), passed as keyword
+reward weights :class:`RewardWeights`, observation noise, calibration errors drawn at
+each reset :class:`CalibrationSpread`), passed as keyword
 arguments to ``gymnasium.make`` (with the fields of :class:`PhysicsSettings` for the
 dynamic environment).
 
@@ -32,7 +33,14 @@ from ._render import FRAME_PIXELS
 from .baseline import ScriptedPolicy, evaluate_policy
 from .orient import RENDER_MODES, OrientEnv
 from .orient_dynamic import OrientDynamicEnv
-from .settings import GOAL_MODES, SAFETY_MODES, START_MODES, OrientSettings, RewardWeights
+from .settings import (
+    GOAL_MODES,
+    SAFETY_MODES,
+    START_MODES,
+    CalibrationSpread,
+    OrientSettings,
+    RewardWeights,
+)
 from .vector import OrientVectorEnv
 from .vector_dynamic import OrientDynamicVectorEnv
 
@@ -45,6 +53,7 @@ __all__ = [
     "RENDER_MODES",
     "SAFETY_MODES",
     "START_MODES",
+    "CalibrationSpread",
     "OrientDynamicEnv",
     "OrientDynamicVectorEnv",
     "OrientEnv",

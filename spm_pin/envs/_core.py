@@ -25,6 +25,7 @@ from ..kinematics import forward_kinematics
 from ..kinematics.fk import _SIGN_TOL
 from ..planning import SafeSet, safe_set_of
 from . import _kinematic_kernel, _observe_kernel
+from ._calibration_error import BelievedModels
 from ._safe_lookup import SafeLookup
 from .settings import OrientSettings
 
@@ -180,6 +181,10 @@ class OrientCore:
         self.goal_theta = np.zeros((num, 3))
         self.hold = np.zeros(num, dtype=np.intp)
         self.steps = np.zeros(num, dtype=np.intp)
+        #: The models the robots' controllers believe (``calibration_error``), or None.
+        self.believed: BelievedModels | None = None
+        if settings.calibration_error.active:
+            self.believed = BelievedModels(self.design, num, settings.calibration_error)
         fixed = np.asarray(settings.goal_theta, dtype=float)
         self._fixed_goal = fixed
         if settings.goal == "fixed":
@@ -261,6 +266,8 @@ class OrientCore:
         self.goal_theta[rows] = goal
         self.hold[rows] = 0
         self.steps[rows] = 0
+        if self.believed is not None:  # after the start and the goal, robot by robot
+            self.believed.draw(rows, rngs)
 
     # ---------------------------------------------------------------- safety
     def safe(self, theta: FloatArray) -> BoolArray:
@@ -570,11 +577,14 @@ class OrientCore:
 
     def observe(self, rows: IntArray, rngs: list[np.random.Generator]) -> npt.NDArray[np.float32]:
         """Observations of ``rows`` (n, 21), float32, with noise drawn from each row's
-        own generator when ``observation_noise`` > 0 (without noise, by the compiled
-        :func:`~spm_pin.envs._observe_kernel.observe_rows` where numba is installed
-        and ``fused`` is on: the same numbers)."""
+        own generator when ``observation_noise`` > 0, and the platform rotation and
+        input angles that the robots' controllers believe with ``calibration_error``
+        (:class:`~spm_pin.envs._calibration_error.BelievedModels`); without either,
+        by the compiled :func:`~spm_pin.envs._observe_kernel.observe_rows` where numba
+        is installed and ``fused`` is on: the same numbers."""
         sigma = self.settings.observation_noise
-        if sigma == 0.0 and self.fused and (self._observe is not None or _jit.available()):
+        plain = sigma == 0.0 and self.believed is None
+        if plain and self.fused and (self._observe is not None or _jit.available()):
             out = np.empty((rows.size, OBSERVATION_SIZE), dtype=np.float32)
             args = (
                 np.ascontiguousarray(rows, dtype=np.int64),
@@ -590,10 +600,12 @@ class OrientCore:
                 self._observe = _jit.entry(kernel, args)
             self._observe(*args)
             return out
-        theta = self.theta[rows]
+        theta, R = self.theta[rows], self.R[rows]
+        if self.believed is not None:
+            theta, R = self.believed.observed(rows, theta, R)
         obs = np.concatenate(
             [
-                six_d(self.R[rows]),
+                six_d(R),
                 six_d(self.goal[rows]),
                 np.sin(theta),
                 np.cos(theta),

@@ -128,9 +128,9 @@ class SingleStep:
 
     def _prepared_record(self) -> _Record | None:
         """The observation's call, made on first use; None where it does not apply
-        (observation noise, ``fused`` off, no numba)."""
+        (observation noise, calibration errors, ``fused`` off, no numba)."""
         core = self.core
-        if core.settings.observation_noise != 0.0 or not core.fused:
+        if core.settings.observation_noise != 0.0 or core.believed is not None or not core.fused:
             return None
         if self._record is None:
             if not _jit.available():

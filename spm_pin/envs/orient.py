@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 
+from ..calibration import CalibrationParameters
 from ..errors import InputError
 from ._core import _ROW, OBSERVATION_SIZE, OrientCore
 from ._render import HumanView, draw_frame
@@ -134,6 +135,13 @@ class OrientEnv(gymnasium.Env[ObsArray, npt.NDArray[np.float32]]):
         """The curriculum level in [0, 1] for the next resets (``goal="curriculum"``)."""
         checked = dataclasses.replace(self.settings, curriculum_level=level)
         self.core.level = checked.curriculum_level
+
+    def calibration(self) -> CalibrationParameters | None:
+        """The calibration parameters this episode's observations are computed with
+        (drawn at the reset with ``calibration_error``), or None without calibration
+        errors."""
+        believed = self.core.believed
+        return None if believed is None else believed.parameters[0]
 
     def _info(self, error: float) -> dict[str, Any]:
         return {

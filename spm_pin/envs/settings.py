@@ -11,7 +11,15 @@ from ..errors import InputError
 from ..hardware.config import SafetyLimits
 from ..planning import PlanSettings
 
-__all__ = ["GOAL_MODES", "SAFETY_MODES", "START_MODES", "OrientSettings", "RewardWeights"]
+__all__ = [
+    "GOAL_MODES",
+    "MAX_CALIBRATION_SPREAD",
+    "SAFETY_MODES",
+    "START_MODES",
+    "CalibrationSpread",
+    "OrientSettings",
+    "RewardWeights",
+]
 
 #: How goals are drawn at each reset.
 GOAL_MODES = ("random", "fixed", "curriculum")
@@ -85,6 +93,46 @@ class RewardWeights:
             _number(getattr(self, field.name), field.name, 0.0, 1e6)
 
 
+#: The largest standard deviation of a calibration error [rad] (5 deg).
+MAX_CALIBRATION_SPREAD = math.radians(5.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationSpread:
+    """Calibration errors drawn at each reset (domain randomisation for transfer to
+    the prototype): the standard deviations [rad] of Gaussian errors of the
+    calibration's parameters (:class:`~spm_pin.calibration.CalibrationParameters`),
+    each in [0, :data:`MAX_CALIBRATION_SPREAD`]; all 0 (the default) draws none.
+
+    The robot's controller observes the state through the model these errors make
+    (believed input = true input + the offset's error; the platform rotation of the
+    believed link angles at the believed inputs); the simulated robot, its safety,
+    the reward and the ends are the nominal design's (``docs/envs.md``).
+
+    Attributes:
+        offsets: The encoder zero offsets' error, each input.
+        alpha1: The proximal link angle's error.
+        alpha2: The distal link angle's error.
+        beta: The error of the platform joint axes' inclination.
+    """
+
+    offsets: float = 0.0
+    alpha1: float = 0.0
+    alpha2: float = 0.0
+    beta: float = 0.0
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            name = f"calibration_error.{field.name}"
+            object.__setattr__(self, field.name, _number(value, name, 0.0, MAX_CALIBRATION_SPREAD))
+
+    @property
+    def active(self) -> bool:
+        """Whether any error is drawn (some standard deviation above 0)."""
+        return any(getattr(self, field.name) > 0.0 for field in dataclasses.fields(self))
+
+
 @dataclasses.dataclass(frozen=True)
 class OrientSettings:
     """Options of ``spm_pin/Orient-v0`` (every one has a default).
@@ -135,6 +183,8 @@ class OrientSettings:
             that the cover leaves out (its width shrinks with the cover's level:
             see ``docs/envs.md``). False: the states outside certified cells are
             checked.
+        calibration_error: Calibration errors drawn at each reset, which the
+            observation sees (:class:`CalibrationSpread`; none by default).
     """
 
     design: SPMDesign | None = None
@@ -154,6 +204,7 @@ class OrientSettings:
     weights: RewardWeights = dataclasses.field(default_factory=RewardWeights)
     cover: str | None = None
     cover_only: bool = False
+    calibration_error: CalibrationSpread = dataclasses.field(default_factory=CalibrationSpread)
 
     def __post_init__(self) -> None:
         if self.design is not None and not isinstance(self.design, SPMDesign):
@@ -167,6 +218,13 @@ class OrientSettings:
                 f"limits must be SafetyLimits, got {type(self.limits).__name__}",
                 argument="limits",
                 value=self.limits,
+            )
+        if not isinstance(self.calibration_error, CalibrationSpread):
+            raise InputError(
+                "calibration_error must be a CalibrationSpread, got "
+                f"{type(self.calibration_error).__name__}",
+                argument="calibration_error",
+                value=self.calibration_error,
             )
         if not isinstance(self.weights, RewardWeights):
             raise InputError(

@@ -24,6 +24,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ..calibration import CalibrationParameters
 from ..errors import InputError
 from ._actions import check_actions
 from ._core import OrientCore
@@ -108,6 +109,21 @@ class OrientVectorEnv(VectorEnv[ObsArray, npt.NDArray[np.float32], npt.NDArray[A
         """The curriculum level in [0, 1] for the next resets (``goal="curriculum"``)."""
         checked = dataclasses.replace(self.settings, curriculum_level=level)
         self.core.level = checked.curriculum_level
+
+    def calibration(self, index: int) -> CalibrationParameters | None:
+        """The calibration parameters that robot ``index``'s observations are
+        computed with in its episode (drawn at its reset with ``calibration_error``),
+        or None without calibration errors."""
+        if isinstance(index, bool) or not isinstance(index, int | np.integer):
+            raise InputError(f"index must be an integer, got {index!r}", argument="index")
+        if not 0 <= index < self.num_envs:
+            raise InputError(
+                f"index must lie in 0..{self.num_envs - 1}, got {index}",
+                argument="index",
+                value=index,
+            )
+        believed = self.core.believed
+        return None if believed is None else believed.parameters[int(index)]
 
     def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
         if seed is None:
